@@ -1,0 +1,114 @@
+"""The command line: `main(argv)` parses, calls the library, prints, and exits 1 on a known error.
+
+Verbs: simulate, fit, design, reconstruct, report, demo. Errors of our packages print as one line,
+`catadioptric: error: <message>`, with no traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from catadioptric import __version__
+from catadioptric.errors import CatadioptricError
+
+__all__ = ["main", "known_errors"]
+
+
+def known_errors() -> tuple[type, ...]:
+    """The base errors of every package: these print as one line and exit 1."""
+    from depth.errors import DepthError
+    errors: list[type] = [CatadioptricError, DepthError]
+    for module, name in (("raytrace.errors", "RaytraceError"), ("xslit_fit.errors", "FitError")):
+        try:
+            mod = __import__(module, fromlist=[name])
+            errors.append(getattr(mod, name))
+        except (ImportError, AttributeError):
+            pass
+    return tuple(errors)
+
+
+class NotAvailable(Exception):
+    """A verb whose work is not built yet: exit 2."""
+
+
+def _not_available(verb: str):
+    def run(args):
+        raise NotAvailable(f"`catadioptric {verb}` is not available yet in version {__version__}")
+    return run
+
+
+def _cmd_demo(args) -> int:
+    from catadioptric import demo
+    return demo.run(args)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="catadioptric",
+        description="Absolute depth and size from one image of a cylindrical mirror (XSlit DDAR/DDS).")
+    p.add_argument("--version", action="version", version=f"catadioptric {__version__}")
+    sub = p.add_subparsers(dest="verb", metavar="VERB", required=True)
+
+    s = sub.add_parser("simulate", help="render what the camera sees in the mirror, with exact ground truth")
+    s.add_argument("setup", metavar="SETUP.toml")
+    s.add_argument("-o", "--output", metavar="OUT.png", required=True)
+    s.add_argument("--spp", type=int, default=4, help="samples per pixel at edges (default 4)")
+    s.add_argument("--seed", type=int, default=0)
+    s.set_defaults(func=_not_available("simulate"))
+
+    f = sub.add_parser("fit", help="fit virtual slits (XSlit/GLC) to the mirror's reflected rays")
+    f.add_argument("setup", metavar="SETUP.toml")
+    f.add_argument("--roi", type=float, nargs=4, metavar=("X0", "Y0", "X1", "Y1"))
+    f.add_argument("--tiles", type=int, metavar="N")
+    f.add_argument("--json", action="store_true")
+    f.set_defaults(func=_not_available("fit"))
+
+    d = sub.add_parser("design", help="slits, sensitivity and discernible depth of a mirror setup")
+    d.add_argument("setup", metavar="SETUP.toml")
+    d.add_argument("--depth-range", type=float, nargs=2, metavar=("A", "B"))
+    d.add_argument("--json", action="store_true")
+    d.add_argument("--plot", metavar="OUT.png")
+    d.add_argument("--optimize", action="store_true")
+    d.set_defaults(func=_not_available("design"))
+
+    r = sub.add_parser("reconstruct", help="cube depths, sizes and positions from one mirror image")
+    r.add_argument("image", metavar="IMAGE.png")
+    r.add_argument("--setup", metavar="SETUP.toml")
+    r.add_argument("--cube-size", type=float, metavar="S")
+    r.add_argument("--method", default=None)
+    r.add_argument("-o", "--output", metavar="OUT.json")
+    r.add_argument("--overlay", metavar="OUT.png")
+    r.set_defaults(func=_not_available("reconstruct"))
+
+    rp = sub.add_parser("report", help="an HTML report with 3D views, plots and annotated images")
+    rp.add_argument("input", metavar="IMAGE.png|RESULT.json")
+    rp.add_argument("--setup", metavar="SETUP.toml")
+    rp.add_argument("-o", "--output", metavar="DIR", required=True)
+    rp.set_defaults(func=_not_available("report"))
+
+    dm = sub.add_parser("demo", help="run the built-in example")
+    dm.add_argument("-o", "--output", metavar="DIR", default=None)
+    dm.set_defaults(func=_cmd_demo)
+    return p
+
+
+def main(argv=None) -> int:
+    """Entry point of the `catadioptric` console script; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except NotAvailable as exc:
+        print(f"catadioptric: {exc}", file=sys.stderr)
+        return 2
+    except known_errors() as exc:
+        print(f"catadioptric: error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("catadioptric: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,384 @@
+"""Setup files: `Setup` with `CameraConfig`, mirror configs (`CylinderConfig`) and object configs (`CubeConfig`).
+
+The TOML format is the public contract of ../shared/SETUP_FORMAT.md. Every config is a dataclass
+with `from_dict`/`to_dict`; mirrors and objects are looked up in a registry by their `type` key.
+Validation raises `SetupError` with one line naming the file, the key and what was expected.
+
+Extensions to the contract (all optional, so older files stay valid):
+- `[scene]`: `background` (linear RGB), `ground` (bool: a grey checkered ground plane),
+  `light_direction` (world vector the light travels along), `ambient` (0..1).
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+from catadioptric.errors import SetupError
+
+__all__ = [
+    "CameraConfig", "CylinderConfig", "CubeConfig", "SceneConfig", "Setup",
+    "MIRROR_TYPES", "OBJECT_TYPES", "load_setup", "save_setup", "setup_to_toml",
+]
+
+
+class _Where:
+    """Where a value came from: the file name (or '<dict>') and the dotted key path."""
+
+    def __init__(self, source: str, prefix: str = ""):
+        self.source, self.prefix = source, prefix
+
+    def key(self, name: str) -> str:
+        return f"{self.prefix}{name}"
+
+    def child(self, name: str) -> "_Where":
+        return _Where(self.source, f"{self.prefix}{name}.")
+
+    def error(self, name: str, expected: str, got: Any = None, show_got: bool = True) -> SetupError:
+        tail = f", got {got!r}" if show_got else ""
+        return SetupError(f"{self.source}: {self.key(name)}: expected {expected}{tail}")
+
+
+def _is_number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def _number(d: dict, name: str, w: _Where, positive=False, lo=None, hi=None, default=None) -> float:
+    if name not in d:
+        if default is not None:
+            return default
+        raise w.error(name, "a number (missing key)", show_got=False)
+    x = d[name]
+    if not _is_number(x) or not math.isfinite(x):
+        raise w.error(name, "a finite number", x)
+    if positive and x <= 0:
+        raise w.error(name, "a positive number", x)
+    if lo is not None and x < lo or hi is not None and x > hi:
+        raise w.error(name, f"a number in [{lo}, {hi}]", x)
+    return float(x)
+
+
+def _vector(d: dict, name: str, w: _Where, n: int, positive=False, nonzero=False, lo=None, hi=None,
+            integer=False, default=None) -> tuple:
+    if name not in d:
+        if default is not None:
+            return default
+        raise w.error(name, f"a list of {n} numbers (missing key)", show_got=False)
+    x = d[name]
+    kind = "integers" if integer else "finite numbers"
+    if not isinstance(x, list) or len(x) != n or not all(_is_number(v) for v in x):
+        raise w.error(name, f"a list of {n} {kind}", x)
+    if integer and not all(isinstance(v, int) for v in x):
+        raise w.error(name, f"a list of {n} integers", x)
+    if not all(math.isfinite(v) for v in x):
+        raise w.error(name, f"a list of {n} finite numbers", x)
+    if positive and not all(v > 0 for v in x):
+        raise w.error(name, f"a list of {n} positive numbers", x)
+    if lo is not None and not all(lo <= v <= hi for v in x):
+        raise w.error(name, f"a list of {n} numbers in [{lo}, {hi}]", x)
+    if nonzero and math.sqrt(sum(v * v for v in x)) == 0.0:
+        raise w.error(name, "a non-zero vector", x)
+    return tuple(int(v) if integer else float(v) for v in x)
+
+
+def _string(d: dict, name: str, w: _Where, choices=None, default=None) -> str:
+    if name not in d:
+        if default is not None:
+            return default
+        raise w.error(name, "a string (missing key)", show_got=False)
+    x = d[name]
+    if not isinstance(x, str) or (choices is not None and x not in choices):
+        what = "one of " + ", ".join(f'"{c}"' for c in choices) if choices else "a string"
+        raise w.error(name, what, x)
+    return x
+
+
+def _table(d: Any, w: _Where, name: str) -> dict:
+    if not isinstance(d, dict):
+        raise SetupError(f"{w.source}: {name}: expected a table, got {type(d).__name__}")
+    return d
+
+
+def _no_unknown(d: dict, allowed: set, w: _Where) -> None:
+    unknown = sorted(set(d) - allowed)
+    if unknown:
+        raise SetupError(f"{w.source}: {w.key(unknown[0])}: unknown key "
+                         f"(expected one of: {', '.join(sorted(allowed))})")
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """The pinhole camera of `[camera]` (OpenCV conventions)."""
+
+    resolution: tuple[int, int]
+    focal_px: tuple[float, float]
+    position: tuple[float, float, float]
+    look_at: tuple[float, float, float]
+    up: tuple[float, float, float]
+    principal_px: tuple[float, float] | None = None
+
+    KEYS: ClassVar[set] = {"resolution", "focal_px", "principal_px", "position", "look_at", "up"}
+
+    @classmethod
+    def from_dict(cls, d: dict, source: str = "<dict>", prefix: str = "camera.") -> "CameraConfig":
+        w = _Where(source, prefix)
+        d = _table(d, w, prefix.rstrip("."))
+        _no_unknown(d, cls.KEYS, w)
+        res = _vector(d, "resolution", w, 2, positive=True, integer=True)
+        cam = cls(resolution=res,
+                  focal_px=_vector(d, "focal_px", w, 2, positive=True),
+                  position=_vector(d, "position", w, 3),
+                  look_at=_vector(d, "look_at", w, 3),
+                  up=_vector(d, "up", w, 3, nonzero=True),
+                  principal_px=_vector(d, "principal_px", w, 2) if "principal_px" in d else None)
+        view = np.subtract(cam.look_at, cam.position)
+        if np.linalg.norm(view) == 0:
+            raise w.error("look_at", "a point different from camera.position", list(cam.look_at))
+        cosang = abs(np.dot(view, cam.up)) / (np.linalg.norm(view) * np.linalg.norm(cam.up))
+        if cosang > 1 - 1e-9:
+            raise w.error("up", "a direction not parallel to the viewing direction (look_at - position)",
+                          list(cam.up))
+        return cam
+
+    @property
+    def principal(self) -> tuple[float, float]:
+        """(cx, cy): `principal_px`, or the image centre ((W-1)/2, (H-1)/2)."""
+        if self.principal_px is not None:
+            return self.principal_px
+        return ((self.resolution[0] - 1) / 2.0, (self.resolution[1] - 1) / 2.0)
+
+    def to_dict(self) -> dict:
+        d = {"resolution": list(self.resolution), "focal_px": list(self.focal_px)}
+        if self.principal_px is not None:
+            d["principal_px"] = list(self.principal_px)
+        d.update(position=list(self.position), look_at=list(self.look_at), up=list(self.up))
+        return d
+
+    def build(self):
+        """The `raytrace.camera.PinholeCamera` of this config."""
+        from raytrace.camera import PinholeCamera
+        return PinholeCamera.from_look_at(self.resolution, self.focal_px, self.principal,
+                                          self.position, self.look_at, self.up)
+
+
+@dataclass(frozen=True)
+class CylinderConfig:
+    """`[mirror]` with type = "cylinder": the open lateral surface of a circular cylinder."""
+
+    radius: float
+    height: float
+    center: tuple[float, float, float]
+    axis: tuple[float, float, float]
+    type: str = "cylinder"
+
+    KEYS: ClassVar[set] = {"type", "radius", "height", "center", "axis"}
+
+    @classmethod
+    def from_dict(cls, d: dict, source: str = "<dict>", prefix: str = "mirror.") -> "CylinderConfig":
+        w = _Where(source, prefix)
+        _no_unknown(d, cls.KEYS, w)
+        return cls(radius=_number(d, "radius", w, positive=True),
+                   height=_number(d, "height", w, positive=True),
+                   center=_vector(d, "center", w, 3),
+                   axis=_vector(d, "axis", w, 3, nonzero=True))
+
+    def to_dict(self) -> dict:
+        return {"type": self.type, "radius": self.radius, "height": self.height,
+                "center": list(self.center), "axis": list(self.axis)}
+
+    def build(self):
+        """The `raytrace.mirror.CylinderMirror` of this config."""
+        from raytrace.mirror import CylinderMirror
+        return CylinderMirror(self.radius, self.height, self.center, self.axis)
+
+    def distance_to_axis(self, point) -> float:
+        """Distance from a world point to the mirror's axis (metres)."""
+        a = np.asarray(self.axis, float) / np.linalg.norm(self.axis)
+        p = np.asarray(point, float) - np.asarray(self.center, float)
+        return float(np.linalg.norm(p - np.dot(p, a) * a))
+
+
+@dataclass(frozen=True)
+class CubeConfig:
+    """`[[objects]]` with type = "cube": edge `size`, `center`, `rotation_deg` (scipy "xyz"), `color`."""
+
+    size: float
+    center: tuple[float, float, float]
+    rotation_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    color: tuple[float, float, float] = (0.8, 0.8, 0.8)
+    type: str = "cube"
+
+    KEYS: ClassVar[set] = {"type", "size", "center", "rotation_deg", "color"}
+
+    @classmethod
+    def from_dict(cls, d: dict, source: str = "<dict>", prefix: str = "objects[0].") -> "CubeConfig":
+        w = _Where(source, prefix)
+        _no_unknown(d, cls.KEYS, w)
+        return cls(size=_number(d, "size", w, positive=True),
+                   center=_vector(d, "center", w, 3),
+                   rotation_deg=_vector(d, "rotation_deg", w, 3, default=(0.0, 0.0, 0.0)),
+                   color=_vector(d, "color", w, 3, lo=0.0, hi=1.0, default=(0.8, 0.8, 0.8)))
+
+    def to_dict(self) -> dict:
+        return {"type": self.type, "size": self.size, "center": list(self.center),
+                "rotation_deg": list(self.rotation_deg), "color": list(self.color)}
+
+    @property
+    def rotation(self) -> np.ndarray:
+        """(3, 3) float64 rotation matrix: scipy Rotation.from_euler("xyz", rotation_deg, degrees=True)."""
+        from scipy.spatial.transform import Rotation
+        return Rotation.from_euler("xyz", self.rotation_deg, degrees=True).as_matrix()
+
+    def build(self):
+        """The `raytrace.scene.Cube` of this config."""
+        from raytrace.scene import Cube
+        return Cube(self.size, self.center, self.rotation, self.color)
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    """Optional `[scene]` (an extension of the contract): background, ground plane and lighting."""
+
+    background: tuple[float, float, float] = (0.85, 0.85, 0.85)
+    ground: bool = False
+    light_direction: tuple[float, float, float] = (-0.4, -1.0, -0.6)
+    ambient: float = 0.35
+
+    KEYS: ClassVar[set] = {"background", "ground", "light_direction", "ambient"}
+
+    @classmethod
+    def from_dict(cls, d: dict, source: str = "<dict>", prefix: str = "scene.") -> "SceneConfig":
+        w = _Where(source, prefix)
+        d = _table(d, w, prefix.rstrip("."))
+        _no_unknown(d, cls.KEYS, w)
+        ground = d.get("ground", cls.ground)
+        if not isinstance(ground, bool):
+            raise w.error("ground", "true or false", ground)
+        return cls(background=_vector(d, "background", w, 3, lo=0.0, hi=1.0, default=cls.background),
+                   ground=ground,
+                   light_direction=_vector(d, "light_direction", w, 3, nonzero=True,
+                                           default=cls.light_direction),
+                   ambient=_number(d, "ambient", w, lo=0.0, hi=1.0, default=cls.ambient))
+
+    def to_dict(self) -> dict:
+        return {"background": list(self.background), "ground": self.ground,
+                "light_direction": list(self.light_direction), "ambient": self.ambient}
+
+
+MIRROR_TYPES: dict[str, type] = {"cylinder": CylinderConfig}
+OBJECT_TYPES: dict[str, type] = {"cube": CubeConfig}
+TOP_KEYS = {"units", "camera", "mirror", "objects", "scene"}
+
+
+@dataclass(frozen=True)
+class Setup:
+    """A whole setup file: camera, mirror, objects (used by `simulate` only) and optional scene."""
+
+    camera: CameraConfig
+    mirror: CylinderConfig | None
+    objects: tuple = ()
+    scene: SceneConfig = field(default_factory=SceneConfig)
+    units: str = "m"
+
+    @classmethod
+    def from_dict(cls, d: dict, source: str = "<dict>", require_mirror: bool = True,
+                  check_geometry: bool = True) -> "Setup":
+        """Validate a parsed setup dictionary. `source` names the file in error messages."""
+        w = _Where(source)
+        _no_unknown(d, TOP_KEYS, w)
+        units = _string(d, "units", w, choices=("m",), default="m")
+        if "camera" not in d:
+            raise SetupError(f"{source}: camera: missing table [camera]")
+        camera = CameraConfig.from_dict(d["camera"], source)
+        mirror = None
+        if "mirror" in d:
+            md = _table(d["mirror"], w, "mirror")
+            mtype = _string(md, "type", w.child("mirror"), choices=tuple(MIRROR_TYPES))
+            mirror = MIRROR_TYPES[mtype].from_dict(md, source)
+        elif require_mirror:
+            raise SetupError(f"{source}: mirror: missing table [mirror] (expected a mirror, e.g. type = \"cylinder\")")
+        objects = []
+        raw = d.get("objects", [])
+        if not isinstance(raw, list):
+            raise SetupError(f"{source}: objects: expected an array of tables [[objects]]")
+        for i, od in enumerate(raw):
+            prefix = f"objects[{i}]."
+            od = _table(od, w, prefix.rstrip("."))
+            otype = _string(od, "type", w.child(f"objects[{i}]"), choices=tuple(OBJECT_TYPES))
+            objects.append(OBJECT_TYPES[otype].from_dict(od, source, prefix))
+        scene = SceneConfig.from_dict(d["scene"], source) if "scene" in d else SceneConfig()
+        setup = cls(camera=camera, mirror=mirror, objects=tuple(objects), scene=scene, units=units)
+        if check_geometry and mirror is not None:
+            setup._check_geometry(source)
+        return setup
+
+    def to_dict(self) -> dict:
+        d: dict = {"units": self.units, "camera": self.camera.to_dict()}
+        if self.mirror is not None:
+            d["mirror"] = self.mirror.to_dict()
+        if self.scene != SceneConfig():
+            d["scene"] = self.scene.to_dict()
+        if self.objects:
+            d["objects"] = [o.to_dict() for o in self.objects]
+        return d
+
+    def _check_geometry(self, source: str) -> None:
+        """A camera inside the mirror, or a mirror the camera does not see, is an error."""
+        m = self.mirror
+        if m.distance_to_axis(self.camera.position) <= m.radius:
+            raise SetupError(f"{source}: camera.position: expected a point outside the mirror "
+                             f"(distance to the axis > mirror.radius = {m.radius}), got {list(self.camera.position)}")
+        camera, mirror = self.camera.build(), m.build()
+        w, h = self.camera.resolution
+        gu, gv = np.meshgrid(np.linspace(0, w - 1, 48), np.linspace(0, h - 1, 36))
+        origins, dirs = camera.rays(np.column_stack([gu.ravel(), gv.ravel()]))
+        hit = mirror.intersect(origins, dirs)[1]
+        if not np.any(hit):
+            raise SetupError(f"{source}: camera.look_at: expected the camera to look at the mirror "
+                             f"(no pixel of the image sees it)")
+
+    def build_scene(self):
+        """The `raytrace.scene.Scene` of this setup (mirror, cubes, background, ground, light)."""
+        from raytrace import scene as rs
+        kwargs = {}
+        if self.scene.ground:
+            kwargs["ground"] = rs.GroundPlane.below(self.mirror.build(), self.camera.build())
+        return rs.Scene(mirror=self.mirror.build(), objects=[o.build() for o in self.objects],
+                        background=self.scene.background,
+                        light=rs.DirectionalLight(direction=self.scene.light_direction,
+                                                  ambient=self.scene.ambient),
+                        **kwargs)
+
+
+def load_setup(path, require_mirror: bool = True) -> Setup:
+    """Read and validate a setup TOML file; any problem is a one-line `SetupError` naming the file."""
+    path = Path(path)
+    name = str(path)
+    if not path.exists():
+        raise SetupError(f"{name}: no such setup file")
+    if path.is_dir():
+        raise SetupError(f"{name}: expected a setup file (TOML), got a directory")
+    try:
+        with path.open("rb") as f:
+            data = tomllib.load(f)
+    except tomllib.TOMLDecodeError as exc:
+        raise SetupError(f"{name}: invalid TOML: {exc}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SetupError(f"{name}: cannot read setup file: {exc}") from None
+    return Setup.from_dict(data, source=name, require_mirror=require_mirror)
+
+
+def setup_to_toml(setup: Setup) -> str:
+    """The TOML text of a setup (round-trips through `load_setup`)."""
+    import tomli_w
+    return tomli_w.dumps(setup.to_dict())
+
+
+def save_setup(setup: Setup, path) -> None:
+    """Write a setup as TOML."""
+    Path(path).write_text(setup_to_toml(setup))
