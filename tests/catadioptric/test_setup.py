@@ -1,0 +1,103 @@
+"""Tests of catadioptric.setup: round trips, and one-line errors naming the file and the key."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from catadioptric.errors import SetupError
+from catadioptric.setup import Setup, load_setup, save_setup, setup_to_toml
+from catadioptric import setup as setup_mod
+
+
+def test_contract_example_loads_with_defaults(valid_setup, write_setup):
+    s = load_setup(write_setup(valid_setup))
+    assert s.camera.principal == (79.5, 59.5)
+    assert s.mirror.type == "cylinder" and s.mirror.radius == 0.1
+    cube = s.objects[0]
+    np.testing.assert_allclose(cube.rotation, Rotation.from_euler("xyz", [0, -165, 0], degrees=True).as_matrix())
+
+
+def test_round_trip_dict_and_toml(valid_setup, tmp_path):
+    s = Setup.from_dict(valid_setup)
+    assert Setup.from_dict(s.to_dict()) == s
+    p = tmp_path / "again.toml"
+    save_setup(s, p)
+    assert load_setup(p) == s
+    assert "[camera]" in setup_to_toml(s)
+
+
+def test_builtin_demo_setup_is_valid():
+    from importlib.resources import files
+    s = load_setup(files("catadioptric") / "data" / "demo.toml")
+    assert len(s.objects) == 5
+    # Each demo cube's local +z face looks at the mirror axis (the face the reconstruction measures).
+    for cube in s.objects:
+        normal = cube.rotation @ np.array([0.0, 0.0, 1.0])
+        to_axis = -np.array([cube.center[0], 0.0, cube.center[2]])
+        assert np.dot(normal, to_axis / np.linalg.norm(to_axis)) > 0.999
+
+
+def _set(d, dotted, value):
+    keys = dotted.split(".")
+    for k in keys[:-1]:
+        d = d[int(k)] if k.isdigit() else d[k]
+    if value is _DELETE:
+        del d[keys[-1]]
+    else:
+        d[keys[-1]] = value
+
+
+_DELETE = object()
+
+BAD = [
+    ("camera.focal_px", [0.0, 350.0], "camera.focal_px: expected a list of 2 positive numbers"),
+    ("camera.focal_px", _DELETE, "camera.focal_px: expected a list of 2 numbers \\(missing key\\)"),
+    ("camera.resolution", [160.5, 120], "camera.resolution: expected a list of 2 integers"),
+    ("camera.position", [0.0, "a", 0.5], "camera.position: expected a list of 3 finite numbers"),
+    ("camera.position", [0.0, math.nan, 0.5], "camera.position: expected a list of 3 finite numbers"),
+    ("camera.up", [0.0, 0.0, 0.0], "camera.up: expected a non-zero vector"),
+    ("camera.up", [0.0, 0.0, -1.0], "camera.up: expected a direction not parallel"),
+    ("camera.fov", 40.0, "camera.fov: unknown key"),
+    ("camera.position", [0.0, 0.0, 0.05], "camera.position: expected a point outside the mirror"),
+    ("camera.look_at", [0.0, 0.0, 1.5], "camera.look_at: expected the camera to look at the mirror"),
+    ("mirror.radius", -0.1, "mirror.radius: expected a positive number"),
+    ("mirror.axis", [0.0, 0.0, 0.0], "mirror.axis: expected a non-zero vector"),
+    ("mirror.type", "paraboloid", 'mirror.type: expected one of "cylinder"'),
+    ("mirror.height", True, "mirror.height: expected a finite number"),
+    ("objects.0.size", 0.0, "objects\\[0\\].size: expected a positive number"),
+    ("objects.0.color", [1.5, 0.0, 0.0], "objects\\[0\\].color: expected a list of 3 numbers in \\[0.0, 1.0\\]"),
+    ("objects.0.type", "sphere", 'objects\\[0\\].type: expected one of "cube"'),
+    ("units", "mm", 'units: expected one of "m"'),
+    ("extra", 1, "extra: unknown key"),
+]
+
+
+@pytest.mark.parametrize("key, value, message", BAD, ids=[f"{k}={v!r}" for k, v, _ in BAD])
+def test_bad_setups_give_one_line_errors_naming_file_and_key(valid_setup, write_setup, key, value, message):
+    _set(valid_setup, key, value)
+    path = write_setup(valid_setup, "bad.toml")
+    with pytest.raises(SetupError, match=message) as info:
+        load_setup(path)
+    text = str(info.value)
+    assert text.startswith(str(path) + ": ")
+    assert "\n" not in text
+
+
+def test_missing_mirror_file_and_invalid_toml(tmp_path, valid_setup, write_setup):
+    with pytest.raises(SetupError, match="nope.toml: no such setup file"):
+        load_setup(tmp_path / "nope.toml")
+    bad = tmp_path / "broken.toml"
+    bad.write_text("[camera\nresolution = 3")
+    with pytest.raises(SetupError, match="broken.toml: invalid TOML"):
+        load_setup(bad)
+    del valid_setup["mirror"]
+    with pytest.raises(SetupError, match="mirror: missing table \\[mirror\\]"):
+        load_setup(write_setup(valid_setup))
+    assert load_setup(write_setup(valid_setup, "nomirror.toml"), require_mirror=False).mirror is None
+
+
+def test_registries_are_keyed_by_type():
+    assert setup_mod.MIRROR_TYPES["cylinder"] is setup_mod.CylinderConfig
+    assert setup_mod.OBJECT_TYPES["cube"] is setup_mod.CubeConfig
