@@ -3,3 +3,20 @@
 Plücker and GLC algebra, two-slit fits, GLC type classification, the XSlit frame
 and local fit maps. This package never reads or writes files and never prints.
 """
+
+from .errors import FitError
+from .fit import REASONS, FailedFit, SlitFit, fit_two_slits
+from .plucker import Line, lines_through_four, plucker, ray_line_distance, reciprocal_product
+
+__all__ = [
+    "FitError",
+    "Line",
+    "plucker",
+    "reciprocal_product",
+    "ray_line_distance",
+    "lines_through_four",
+    "SlitFit",
+    "FailedFit",
+    "REASONS",
+    "fit_two_slits",
+]
