@@ -87,16 +87,23 @@ def shape_prior(kappa_uv, z1: float, z2: float, sigma=0.0) -> ShapePriorResult:
     ----------
     kappa_uv : (K, 2) float64
         Image extents (κ_u^j, κ_v^j) of each rectangle along v1 and v2.
-    z1, z2 : float
-        Slit depths.
+    z1, z2 : float or (K,) float64
+        Slit depths; per rectangle when each was measured in its own local XSlit frame
+        (a cylindrical mirror has a different local XSlit for every object).
     sigma : float or (K, 2)
         Standard deviation of each measured extent, for the propagated uncertainty.
     """
-    z1, z2 = ddar._check_slits(z1, z2)
     k = _extents(kappa_uv, "kappa_uv")
     n = len(k)
     if n < 2:
         raise DepthError(f"kappa_uv: the shape prior needs at least 2 rectangles, got {n}")
+    try:
+        z1b, z2b = np.broadcast_to(np.asarray(z1, float), (n,)), np.broadcast_to(np.asarray(z2, float), (n,))
+    except ValueError:
+        raise DepthError(f"z1, z2: expected scalars or arrays of {n} slit depths") from None
+    for a, b in zip(z1b, z2b):
+        ddar._check_slits(a, b)
+    z1, z2 = z1b, z2b
     sig = _noise(sigma, k.shape, "sigma")
     # Unknowns x = [z^1..z^K, κ_x, κ_y]; rows 2j: κ_u equation, 2j+1: κ_v equation.
     a = np.zeros((2 * n, n + 2))

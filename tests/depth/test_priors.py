@@ -80,3 +80,16 @@ def test_too_few_and_degenerate_rectangles_are_refused():
         priors.depth_prior([80.0, 90.0], Z1, Z2)
     with pytest.raises(DepthError, match="pinhole"):
         priors.shape_prior(extents([900.0, 1000.0], 1.0, 1.0), -2.0, -2.0)
+
+
+def test_shape_prior_with_a_local_xslit_per_rectangle():
+    # Each rectangle seen through its own XSlit, as each cube is in a cylindrical mirror.
+    slits = [(-0.04, -0.45), (-0.05, -0.52), (-0.045, -0.6)]
+    depths = [0.3, 0.55, 0.8]
+    k = np.vstack([extents([z], 0.04, 0.04, z1, z2) for (z1, z2), z in zip(slits, depths)])
+    z1s, z2s = np.array(slits).T
+    res = priors.shape_prior(k, z1s, z2s)
+    np.testing.assert_allclose(res.depths, depths, rtol=1e-9)
+    assert res.kappa_x == pytest.approx(0.04, rel=1e-9)
+    with pytest.raises(DepthError, match="arrays of 3 slit depths"):
+        priors.shape_prior(k, z1s[:2], z2s[:2])
