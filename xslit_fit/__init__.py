@@ -6,6 +6,7 @@ and local fit maps. This package never reads or writes files and never prints.
 
 from .errors import FitError
 from .fit import REASONS, FailedFit, SlitFit, fit_two_slits
+from .frame import PixelFrame, XSlitFrame, frame_for_pixels, interpolate_rays
 from .plucker import Line, lines_through_four, plucker, ray_line_distance, reciprocal_product
 
 __all__ = [
@@ -19,4 +20,8 @@ __all__ = [
     "FailedFit",
     "REASONS",
     "fit_two_slits",
+    "XSlitFrame",
+    "PixelFrame",
+    "interpolate_rays",
+    "frame_for_pixels",
 ]
