@@ -1,0 +1,510 @@
+"""Rendering: `render` a `Scene` through any camera into a `Render` (image plus exact per-pixel truth).
+
+Embree (embreex) finds first hits on triangle meshes; every hit is then recomputed in float64
+(cube face planes, the ground plane, the mirror's analytic surface) and shaded Lambertian with a
+directional light plus ambient light. The numpy twin (`backend="numpy"`) replaces Embree with
+analytic slab and cylinder tests and shares everything else. Large images are split in tiles
+over worker processes (Embree holds the GIL). Supersampling is adaptive: the `spp` stratified
+samples are traced only for pixels whose 3×3 neighbourhood shows an edge (a change of object,
+cube face, checker cell or mirror/direct view) in the pixel-centre pass; elsewhere the surface
+is flat-shaded so the centre sample is the pixel's exact average.
+"""
+
+from __future__ import annotations
+
+import mmap
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+
+import numpy as np
+
+from .camera import sample_offsets
+from .errors import RaytraceError
+from .mirror import EPS_T, CylinderMirror, reflect
+from .scene import Scene
+
+__all__ = ["Render", "render", "linear_to_srgb8", "trace_paths"]
+
+TILE_PIXELS = 1 << 17
+"""Pixels per tile of the pixel-centre pass (fixed, so results do not depend on `workers`)."""
+CHUNK_PIXELS = 1 << 15
+"""Edge pixels per chunk of the supersampling pass."""
+MIN_PARALLEL_PIXELS = 1 << 16
+"""Images smaller than this render in the calling process."""
+REFLECT_OFFSET = 1e-6
+"""Metres a reflected ray's origin is moved off the mirror (along the normal) before tracing."""
+
+
+@dataclass
+class Render:
+    """The image and exact per-pixel truth of a render (pixel-centre rays for the truth arrays).
+
+    Attributes
+    ----------
+    image : (H, W, 3) float64, linear RGB
+    object_id : (H, W) int32, index into `scene.objects` seen directly or in the mirror; −1 for
+        the background, the ground plane and rays that run out of bounces
+    via_mirror : (H, W) bool, the pixel-centre ray reflected off the mirror at least once
+    ray_distance : (H, W) float32, path length from the camera to the seen surface (inf if none)
+    mirror_point : (H, W, 3) float64, first mirror point of the pixel-centre ray, NaN off the mirror
+    reflected_dir : (H, W, 3) float64, unit reflected direction there, NaN off the mirror
+    rays_traced : int, number of rays traced, all bounces included
+    supersampled : (H, W) bool, pixels that received the `spp` samples
+    """
+
+    image: np.ndarray
+    object_id: np.ndarray
+    via_mirror: np.ndarray
+    ray_distance: np.ndarray
+    mirror_point: np.ndarray
+    reflected_dir: np.ndarray
+    rays_traced: int
+    supersampled: np.ndarray
+
+
+def linear_to_srgb8(image) -> np.ndarray:
+    """Linear RGB in [0, 1] (H, W, 3) float → sRGB-encoded (H, W, 3) uint8 (clipped, rounded)."""
+    x = np.clip(np.asarray(image, dtype=np.float64), 0.0, 1.0)
+    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    return np.round(s * 255.0).astype(np.uint8)
+
+
+# ---------------------------------------------------------------------------------------
+# Geometry shared by both tracers: ids, exact planes, shading data
+# ---------------------------------------------------------------------------------------
+class _Geometry:
+    """Geometry ids: cubes 0..K−1, then the ground (if any), then the mirror (if any)."""
+
+    def __init__(self, scene: Scene):
+        self.scene = scene
+        self.cubes = scene.objects
+        k = len(self.cubes)
+        self.ground_gid = k if scene.ground is not None else -10
+        self.mirror_gid = k + (scene.ground is not None) if scene.mirror is not None else -10
+        if k:
+            self.face_n = np.concatenate([c.face_normals for c in self.cubes])  # (6K, 3)
+            centers = np.repeat(np.stack([c.center for c in self.cubes]), 6, axis=0)
+            half = np.repeat([c.size / 2 for c in self.cubes], 6)
+            self.face_off = np.einsum("ij,ij->i", self.face_n, centers) + half
+            self.colors = np.stack([c.color for c in self.cubes])
+        else:
+            self.face_n = np.zeros((0, 3))
+            self.face_off = np.zeros(0)
+            self.colors = np.zeros((0, 3))
+
+
+def _embree_run(escene, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """The one place where rays are cast to Embree's float32; returns primitive ids (N,) int."""
+    o32 = np.ascontiguousarray(origins, dtype=np.float32)
+    d32 = np.ascontiguousarray(directions, dtype=np.float32)
+    return np.asarray(escene.run(o32, d32), dtype=np.int64)
+
+
+class _EmbreeTracer:
+    """All triangles merged in one Embree mesh (a primitive-id lookup gives geometry and face)."""
+
+    def __init__(self, geo: _Geometry, mirror_sections: int = 720):
+        from embreex import mesh_construction, rtcore_scene
+
+        self.geo = geo
+        scene = geo.scene
+        parts = []  # (triangles (T, 3, 3), gid, local prim ids)
+        for gid, cube in enumerate(geo.cubes):
+            m = cube.mesh()
+            parts.append((m.triangles, gid, np.arange(len(m.faces))))
+        if scene.ground is not None:
+            m = scene.ground.mesh()
+            parts.append((m.triangles, geo.ground_gid, np.arange(len(m.faces))))
+        n_obj = len(parts)
+        if scene.mirror is not None:
+            mm = scene.mirror.mesh() if not isinstance(scene.mirror, CylinderMirror) else scene.mirror.mesh(mirror_sections)
+            parts.append((mm.triangles, geo.mirror_gid, np.arange(len(mm.faces))))
+        self.scenes = {}
+        self.lookups = {}
+        for with_mirror, sel in ((True, parts), (False, parts[:n_obj])):
+            if not sel:
+                self.scenes[with_mirror] = None
+                continue
+            tris = np.concatenate([p[0] for p in sel])
+            gids = np.concatenate([np.full(len(p[0]), p[1]) for p in sel])
+            local = np.concatenate([p[2] for p in sel])
+            es = rtcore_scene.EmbreeScene()
+            mesh_construction.TriangleMesh(es, np.ascontiguousarray(tris, dtype=np.float32))
+            self.scenes[with_mirror] = es
+            self.lookups[with_mirror] = (np.append(gids, -1), np.append(local, -1))
+
+    def first_hit(self, o, d, with_mirror: bool):
+        """geom (N,) int (−1 none), prim (N,) int (local triangle index), t (N,) float64 or None."""
+        es = self.scenes[with_mirror]
+        if es is None or len(o) == 0:
+            return np.full(len(o), -1), np.full(len(o), -1), None
+        prim = _embree_run(es, o, d)
+        gids, local = self.lookups[with_mirror]
+        return gids[prim], local[prim], None
+
+
+class _NumpyTracer:
+    """Analytic twin: slab test per cube, plane test for the ground, analytic mirror."""
+
+    def __init__(self, geo: _Geometry):
+        self.geo = geo
+
+    def first_hit(self, o, d, with_mirror: bool):
+        geo = self.geo
+        n = len(o)
+        best = np.full(n, np.inf)
+        geom = np.full(n, -1)
+        prim = np.full(n, -1)
+        for gid, cube in enumerate(geo.cubes):
+            ol = (o - cube.center) @ cube.rotation
+            dl = d @ cube.rotation
+            half = cube.size / 2
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t1 = (-half - ol) / dl
+                t2 = (half - ol) / dl
+            tmin = np.fmin(t1, t2)
+            tmax = np.fmax(t1, t2)
+            tmin = np.where(np.isnan(tmin), -np.inf, tmin)  # dl == 0 inside the slab
+            tmax = np.where(np.isnan(tmax), np.inf, tmax)
+            inside_slab = (np.abs(ol) <= half) | (dl != 0)
+            axis = np.argmax(tmin, axis=1)
+            tn = np.max(tmin, axis=1)
+            tf = np.min(tmax, axis=1)
+            hit = np.all(inside_slab, axis=1) & (tn <= tf) & (tn > EPS_T) & (tn < best)
+            sign_out = -np.sign(dl[np.arange(n), axis])  # entering face faces the ray
+            face = 2 * axis + (sign_out < 0)
+            best = np.where(hit, tn, best)
+            geom = np.where(hit, gid, geom)
+            prim = np.where(hit, 2 * face, prim)
+        g = geo.scene.ground
+        if g is not None:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = ((g.point - o) @ g.normal) / (d @ g.normal)
+            pc = g.plane_coords(o + np.where(np.isfinite(t), t, 0.0)[:, None] * d)
+            hit = (t > EPS_T) & (t < best) & np.all(np.abs(pc) <= g.extent / 2, axis=1)
+            best = np.where(hit, t, best)
+            geom = np.where(hit, geo.ground_gid, geom)
+            prim = np.where(hit, 0, prim)
+        if with_mirror and geo.scene.mirror is not None:
+            t, hit, _, _ = geo.scene.mirror.intersect(o, d)
+            hit &= t < best
+            best = np.where(hit, t, best)
+            geom = np.where(hit, geo.mirror_gid, geom)
+            prim = np.where(hit, 0, prim)
+        return geom, prim, best
+
+
+# ---------------------------------------------------------------------------------------
+# Path tracing of a batch of rays (shared by both backends)
+# ---------------------------------------------------------------------------------------
+def trace_paths(tracer, origins, directions, bounces: int) -> dict:
+    """Follow rays through up to `bounces` mirror reflections and shade what they reach.
+
+    Parameters
+    ----------
+    tracer : _EmbreeTracer or _NumpyTracer (built on one scene)
+    origins, directions : (N, 3) float64, unit directions
+    bounces : int >= 0, the most mirror reflections followed
+
+    Returns
+    -------
+    dict with color (N, 3) float64, object_id (N,) int32, via_mirror (N,) bool,
+    distance (N,) float64, mirror_point (N, 3), reflected_dir (N, 3) float64 (first
+    reflection, NaN if none), key (N,) int64 (surface identity for edge detection), rays (int).
+    """
+    geo = tracer.geo
+    scene = geo.scene
+    light = scene.light
+    n = len(origins)
+    color = np.empty((n, 3))
+    object_id = np.full(n, -1, dtype=np.int32)
+    via = np.zeros(n, dtype=bool)
+    distance = np.full(n, np.inf)
+    mirror_point = np.full((n, 3), np.nan)
+    reflected_dir = np.full((n, 3), np.nan)
+    key = np.zeros(n, dtype=np.int64)
+    idx = np.arange(n)
+    o = np.asarray(origins, dtype=np.float64)
+    d = np.asarray(directions, dtype=np.float64)
+    travelled = np.zeros(n)
+    rays = 0
+    for bounce in range(bounces + 1):
+        if len(idx) == 0:
+            break
+        geom, prim, t_guess = tracer.first_hit(o, d, True)
+        rays += len(idx)
+        is_m = geom == geo.mirror_gid
+        m_t = m_p = m_n = None
+        if np.any(is_m):
+            mi = np.flatnonzero(is_m)
+            tg = t_guess[mi] if t_guess is not None else np.zeros(len(mi))
+            m_t, m_hit, m_p, m_n = scene.mirror.refine_hits(o[mi], d[mi], tg, prim[mi])
+            miss = mi[~m_hit]
+            if len(miss):  # hit a facet but not the exact surface: look behind the mirror
+                g2, p2, _ = tracer.first_hit(o[miss], d[miss], False)
+                rays += len(miss)
+                geom[miss], prim[miss] = g2, p2
+                is_m[miss] = False
+            keep = m_hit
+            mi, m_t, m_p, m_n = mi[keep], m_t[keep], m_p[keep], m_n[keep]
+
+        # --- objects: exact float64 hit on the face plane, Lambertian shading
+        is_c = (geom >= 0) & (geom < len(geo.cubes))
+        if np.any(is_c):
+            ci = np.flatnonzero(is_c)
+            fidx = geom[ci] * 6 + prim[ci] // 2
+            nf = geo.face_n[fidx]
+            t = (geo.face_off[fidx] - np.einsum("ij,ij->i", nf, o[ci])) / np.einsum("ij,ij->i", nf, d[ci])
+            nf = np.where(np.einsum("ij,ij->i", nf, d[ci])[:, None] > 0, -nf, nf)
+            lam = light.ambient + light.intensity * np.maximum(0.0, nf @ light.to_light)
+            out = idx[ci]
+            color[out] = geo.colors[geom[ci]] * lam[:, None]
+            object_id[out] = geom[ci]
+            distance[out] = travelled[ci] + t
+            key[out] = 4 + geom[ci] * 8 + prim[ci] // 2
+        is_g = geom == geo.ground_gid
+        if np.any(is_g):
+            gi = np.flatnonzero(is_g)
+            g = scene.ground
+            dn = d[gi] @ g.normal
+            t = ((g.point - o[gi]) @ g.normal) / dn
+            p = o[gi] + t[:, None] * d[gi]
+            parity = g.cell_parity(p)
+            ng = np.where(dn[:, None] > 0, -g.normal, g.normal)
+            lam = light.ambient + light.intensity * np.maximum(0.0, ng @ light.to_light)
+            albedo = np.where(parity[:, None] == 0, g.colors[0], g.colors[1])
+            out = idx[gi]
+            color[out] = albedo * lam[:, None]
+            distance[out] = travelled[gi] + t
+            key[out] = 4 + len(geo.cubes) * 8 + parity
+        bg = geom == -1
+        if np.any(bg):
+            out = idx[bg]
+            color[out] = scene.background
+            key[out] = 1
+
+        # --- mirror: record the first reflection, continue the reflected rays
+        if m_t is None or len(mi) == 0:
+            break
+        out = idx[mi]
+        r = reflect(d[mi], m_n)
+        if bounce == 0:
+            mirror_point[out] = m_p
+            reflected_dir[out] = r
+        via[out] = True
+        if bounce == bounces:  # out of bounces: black, no object
+            color[out] = 0.0
+            key[out] = 2
+            break
+        side = np.sign(np.einsum("ij,ij->i", r, m_n))
+        o = m_p + (REFLECT_OFFSET * side)[:, None] * m_n
+        d = r
+        travelled = travelled[mi] + m_t
+        idx = out
+    key = key * 2 + via
+    return {
+        "color": color,
+        "object_id": object_id,
+        "via_mirror": via,
+        "distance": distance,
+        "mirror_point": mirror_point,
+        "reflected_dir": reflected_dir,
+        "key": key,
+        "rays": rays,
+    }
+
+
+# ---------------------------------------------------------------------------------------
+# Tiles and processes
+# ---------------------------------------------------------------------------------------
+_STATE: dict = {}
+_TRACER_CACHE: dict = {}
+
+
+def _tracer():
+    st = _STATE
+    cache_key = (os.getpid(), id(st["scene"]), st["backend"])
+    tr = _TRACER_CACHE.get(cache_key)
+    if tr is None:
+        _TRACER_CACHE.clear()
+        geo = _Geometry(st["scene"])
+        tr = _EmbreeTracer(geo) if st["backend"] == "embree" else _NumpyTracer(geo)
+        _TRACER_CACHE[cache_key] = tr
+    return tr
+
+
+def _centre_tile(start: int, stop: int) -> int:
+    """Pixel-centre pass for flat pixel indices [start, stop); writes the shared outputs."""
+    st = _STATE
+    cam = st["camera"]
+    w = cam.resolution[0]
+    flat = np.arange(start, stop)
+    v, u = np.divmod(flat, w)
+    px = np.stack([u, v], axis=1).astype(np.float64)
+    o, d = cam.rays(px)
+    res = trace_paths(_tracer(), o, d, st["bounces"])
+    out = st["out"]
+    out["image"][start:stop] = res["color"]
+    out["object_id"][start:stop] = res["object_id"]
+    out["via_mirror"][start:stop] = res["via_mirror"]
+    out["ray_distance"][start:stop] = res["distance"]
+    out["mirror_point"][start:stop] = res["mirror_point"]
+    out["reflected_dir"][start:stop] = res["reflected_dir"]
+    out["key"][start:stop] = res["key"]
+    return res["rays"]
+
+
+def _sample_chunk(start: int, stop: int) -> int:
+    """Supersampling pass for edge pixels edge_index[start:stop]; writes their mean colour."""
+    st = _STATE
+    cam = st["camera"]
+    w = cam.resolution[0]
+    flat = st["edge_index"][start:stop]
+    offsets = st["offsets"]
+    v, u = np.divmod(flat, w)
+    centres = np.stack([u, v], axis=1).astype(np.float64)
+    px = (centres[:, None, :] + offsets[None, :, :]).reshape(-1, 2)
+    o, d = cam.rays(px)
+    res = trace_paths(_tracer(), o, d, st["bounces"])
+    st["out"]["image"][flat] = res["color"].reshape(len(flat), len(offsets), 3).mean(axis=1)
+    return res["rays"]
+
+
+def _shared(shape, dtype) -> np.ndarray:
+    """An array in anonymous shared memory, visible to forked workers."""
+    dtype = np.dtype(dtype)
+    nbytes = int(np.prod(shape)) * dtype.itemsize
+    buf = mmap.mmap(-1, max(nbytes, 1))
+    return np.frombuffer(buf, dtype=dtype, count=int(np.prod(shape))).reshape(shape)
+
+
+def _edges(key: np.ndarray) -> np.ndarray:
+    """(H, W) bool: some pixel of the 3×3 neighbourhood has a different key."""
+    p = np.pad(key, 1, mode="edge")
+    h, w = key.shape
+    edge = np.zeros(key.shape, dtype=bool)
+    for dy in (0, 1, 2):
+        for dx in (0, 1, 2):
+            if dy == 1 and dx == 1:
+                continue
+            edge |= p[dy : dy + h, dx : dx + w] != key
+    return edge
+
+
+def _run_jobs(func, ranges, pool, progress, done, total):
+    rays = 0
+    if pool is None:
+        for a, b in ranges:
+            rays += func(a, b)
+            done += 1
+            if progress is not None:
+                progress(done, total)
+        return rays, done
+    futures = [pool.submit(func, a, b) for a, b in ranges]
+    for fut in as_completed(futures):
+        rays += fut.result()
+        done += 1
+        if progress is not None:
+            progress(done, total)
+    return rays, done
+
+
+def _check_int(value, name, lo):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
+        raise RaytraceError(f"{name}: expected an integer >= {lo}, got {value!r}")
+    return int(value)
+
+
+def render(
+    scene: Scene,
+    camera,
+    spp: int = 4,
+    seed: int = 0,
+    bounces: int = 2,
+    progress=None,
+    workers: int = 2,
+    backend: str = "embree",
+    adaptive: bool = True,
+) -> Render:
+    """Render `scene` through `camera`.
+
+    Parameters
+    ----------
+    scene : Scene
+    camera : PinholeCamera, XSlitCamera or PushbroomCamera (anything with `resolution` and `rays`)
+    spp : int >= 1, stratified jittered samples per (edge) pixel, from `sample_offsets(spp, seed)`
+    seed : int >= 0; the same seed gives the same bytes
+    bounces : int >= 0, the most mirror reflections followed per ray
+    progress : callable progress(done: int, total: int) or None
+    workers : int >= 1, processes for large images (forked; Embree holds the GIL)
+    backend : "embree" (default) or "numpy" (the analytic twin)
+    adaptive : trace the `spp` samples only where the pixel-centre pass shows an edge;
+        False traces them for every pixel
+
+    Returns
+    -------
+    Render
+    """
+    if not isinstance(scene, Scene):
+        raise RaytraceError(f"scene: expected a raytrace.scene.Scene, got {type(scene).__name__}")
+    if not hasattr(camera, "rays") or not hasattr(camera, "resolution"):
+        raise RaytraceError("camera: expected a camera with `resolution` and `rays(pixels)`")
+    spp = _check_int(spp, "spp", 1)
+    seed = _check_int(seed, "seed", 0)
+    bounces = _check_int(bounces, "bounces", 0)
+    workers = _check_int(workers, "workers", 1)
+    if backend not in ("embree", "numpy"):
+        raise RaytraceError(f"backend: expected 'embree' or 'numpy', got {backend!r}")
+    w, h = camera.resolution
+    npx = w * h
+    out = {
+        "image": _shared((npx, 3), np.float64),
+        "object_id": _shared((npx,), np.int32),
+        "via_mirror": _shared((npx,), bool),
+        "ray_distance": _shared((npx,), np.float32),
+        "mirror_point": _shared((npx, 3), np.float64),
+        "reflected_dir": _shared((npx, 3), np.float64),
+        "key": _shared((npx,), np.int64),
+    }
+    _STATE.clear()
+    _STATE.update(scene=scene, camera=camera, bounces=bounces, backend=backend, out=out)
+    tiles = [(a, min(a + TILE_PIXELS, npx)) for a in range(0, npx, TILE_PIXELS)]
+    parallel = workers > 1 and npx >= MIN_PARALLEL_PIXELS
+    pool = None
+    try:
+        if parallel:
+            pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("fork"))
+        # Pass 1: pixel centres. The total is re-estimated once the edge count is known.
+        rays, done = _run_jobs(_centre_tile, tiles, pool, progress, 0, len(tiles) + 1)
+        key = out["key"].reshape(h, w)
+        if spp == 1:
+            samp = np.zeros((h, w), dtype=bool)
+        else:
+            samp = _edges(key) if adaptive else np.ones((h, w), dtype=bool)
+        edge_index = np.flatnonzero(samp.reshape(-1))
+        chunks = [(a, min(a + CHUNK_PIXELS, len(edge_index))) for a in range(0, len(edge_index), CHUNK_PIXELS)]
+        if chunks:
+            if pool is not None:  # workers forked before these existed: restart them
+                pool.shutdown()
+                pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("fork"))
+            _STATE.update(edge_index=edge_index, offsets=sample_offsets(spp, seed))
+            more, done = _run_jobs(_sample_chunk, chunks, pool, progress, done, len(tiles) + len(chunks))
+            rays += more
+        elif progress is not None:
+            progress(len(tiles) + 1, len(tiles) + 1)
+    finally:
+        if pool is not None:
+            pool.shutdown()
+        _STATE.clear()
+    return Render(
+        image=out["image"].reshape(h, w, 3),
+        object_id=out["object_id"].reshape(h, w),
+        via_mirror=out["via_mirror"].reshape(h, w),
+        ray_distance=out["ray_distance"].reshape(h, w),
+        mirror_point=out["mirror_point"].reshape(h, w, 3),
+        reflected_dir=out["reflected_dir"].reshape(h, w, 3),
+        rays_traced=int(rays),
+        supersampled=samp,
+    )
