@@ -1,0 +1,724 @@
+"""Image measurement: find cubes reflected in the mirror and measure their front faces.
+
+Main objects: `detect_cubes` (colour segmentation inside the mirror region, returning
+`CubeDetection`s with the front face separated from the side faces) and `face_outline`
+(sub-pixel edge points of a face, assigned to its four sides, returning a `FaceOutline`
+or a falsy `FailedMeasurement`).
+
+Pixel coordinates are (u, v) = (column, row); pixel (0, 0) is the centre of the top-left
+pixel. Images are sRGB-encoded float64 in [0, 1]; edges are located on linearised values
+because renderers and cameras mix radiance linearly across a pixel.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from scipy import ndimage
+
+from depth.errors import DepthError
+
+__all__ = [
+    "CubeDetection",
+    "FaceOutline",
+    "FailedMeasurement",
+    "detect_cubes",
+    "face_outline",
+    "srgb_to_linear",
+]
+
+SIDE_NAMES = ("left", "right", "top", "bottom")
+
+
+# ----------------------------------------------------------------------------- results
+
+
+@dataclass(frozen=True)
+class FailedMeasurement:
+    """A measurement that could not be made; falsy, carries its `reason`."""
+
+    reason: str
+
+    def __bool__(self) -> bool:
+        return False
+
+
+@dataclass(frozen=True, eq=False)
+class CubeDetection:
+    """One coloured blob in the mirror image, believed to be one cube.
+
+    Attributes
+    ----------
+    mask : (H, W) bool
+        All pixels of the blob (every visible face of the cube).
+    front_face_mask : (H, W) bool
+        The largest region of uniform brightness: the face looking toward the mirror.
+    side_face_masks : list of (H, W) bool
+        The other visible faces (narrow side strips, a thin top or bottom strip).
+    bbox : (u0, v0, u1, v1) int
+        Column and row bounds of `mask`, end-exclusive (slices ``[v0:v1, u0:u1]``).
+    color : (3,) float64
+        Median sRGB colour of the front face, in [0, 1].
+    cut_by_mirror_edge : bool
+        The blob touches the boundary of the mirror region (or of the image).
+    occluded : bool
+        The blob touches another coloured blob.
+    reason : str or None
+        Why this cube should not be measured, or None when it may be.
+    """
+
+    mask: np.ndarray
+    front_face_mask: np.ndarray
+    side_face_masks: list[np.ndarray]
+    bbox: tuple[int, int, int, int]
+    color: np.ndarray
+    cut_by_mirror_edge: bool = False
+    occluded: bool = False
+    reason: str | None = None
+
+    @property
+    def usable(self) -> bool:
+        """True when nothing argues against measuring this cube."""
+        return self.reason is None
+
+    @property
+    def area(self) -> int:
+        """Number of pixels of the blob."""
+        return int(self.mask.sum())
+
+
+@dataclass(frozen=True, eq=False)
+class FaceOutline:
+    """Sub-pixel outline of a quadrilateral face with straight left/right sides.
+
+    Attributes
+    ----------
+    sides : list of 4 (M_i, 2) float64
+        Edge points (u, v) of the sides [left, right, top, bottom].
+    normals : list of 4 (M_i, 2) float64
+        Outward unit normals of the fitted side at each edge point.
+    corners_px : (4, 2) float64
+        Corners [top-left, top-right, bottom-right, bottom-left] in pixels: intersections
+        of the lines u = a·v + b fitted to the left/right sides with the quadratics
+        v = a·u² + b·u + c fitted to the top/bottom sides.
+    lines : (2, 2) float64
+        (a, b) of the left and right sides, u = a·v + b.
+    quadratics : (2, 3) float64
+        (a, b, c) of the top and bottom sides, v = a·u² + b·u + c.
+    side_rms_px : (4,) float64
+        Rms normal distance of each side's points to its fitted curve.
+    edge_noise_px : float
+        Rms normal distance over all sides: the per-point edge uncertainty.
+    contrast : (4,) float64
+        Median linear-RGB contrast |c_in − c_out| across each side.
+    """
+
+    sides: list[np.ndarray]
+    normals: list[np.ndarray]
+    corners_px: np.ndarray
+    lines: np.ndarray
+    quadratics: np.ndarray
+    side_rms_px: np.ndarray
+    edge_noise_px: float
+    contrast: np.ndarray
+
+    def __bool__(self) -> bool:
+        return True
+
+    @property
+    def n_points(self) -> int:
+        """Total number of edge points over the four sides."""
+        return int(sum(len(s) for s in self.sides))
+
+
+# -------------------------------------------------------------------------- validation
+
+
+def _check_image(image) -> np.ndarray:
+    if not isinstance(image, np.ndarray):
+        raise DepthError(f"image: expected a numpy array, got {type(image).__name__}")
+    if image.ndim != 3 or image.shape[2] != 3:
+        raise DepthError(f"image: expected shape (H, W, 3) (colour), got {image.shape}")
+    if not np.issubdtype(image.dtype, np.floating):
+        raise DepthError(
+            f"image: expected float64 values in [0, 1] (e.g. 8-bit PNG / 255), got dtype {image.dtype}"
+        )
+    if image.shape[0] < 8 or image.shape[1] < 8:
+        raise DepthError(f"image: expected at least 8×8 pixels, got {image.shape[:2]}")
+    image = np.asarray(image, dtype=np.float64)
+    if not np.all(np.isfinite(image)):
+        raise DepthError("image: expected finite values, found NaN or inf")
+    lo, hi = float(image.min()), float(image.max())
+    if lo < -1e-6 or hi > 1.0 + 1e-6:
+        raise DepthError(f"image: expected values in [0, 1], got range [{lo:g}, {hi:g}]")
+    return image
+
+
+def _check_mask(mask, shape: tuple[int, int], name: str) -> np.ndarray:
+    if not isinstance(mask, np.ndarray):
+        raise DepthError(f"{name}: expected a numpy bool array, got {type(mask).__name__}")
+    if mask.dtype != np.bool_:
+        raise DepthError(f"{name}: expected dtype bool, got {mask.dtype}")
+    if mask.shape != shape:
+        raise DepthError(f"{name}: expected shape {shape} (the image's H, W), got {mask.shape}")
+    return mask
+
+
+# ------------------------------------------------------------------------------ colour
+
+
+def srgb_to_linear(srgb: np.ndarray) -> np.ndarray:
+    """Invert the sRGB transfer function.
+
+    srgb : (...) float64 in [0, 1] → (...) float64 linear values in [0, 1].
+    """
+    srgb = np.asarray(srgb, dtype=np.float64)
+    return np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
+
+
+def _chroma_hue_value(rgb: np.ndarray):
+    """Chroma (max − min), hue angle (radians) and value (max) of (..., 3) sRGB values."""
+    mx = rgb.max(axis=-1)
+    chroma = mx - rgb.min(axis=-1)
+    r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
+    hue = np.arctan2(np.sqrt(3.0) * (g - b), 2.0 * r - g - b)
+    return chroma, hue, mx
+
+
+def _circular_smooth(hist: np.ndarray, sigma: float) -> np.ndarray:
+    return ndimage.gaussian_filter1d(hist.astype(np.float64), sigma, mode="wrap")
+
+
+def _hue_modes(hue: np.ndarray, min_mass: float, min_separation_deg: float = 40.0) -> np.ndarray:
+    """Dominant hue angles (radians) of a set of pixels: peaks of a circular histogram."""
+    nbins = 72
+    hist, _ = np.histogram(hue, bins=nbins, range=(-np.pi, np.pi))
+    smooth = _circular_smooth(hist, 1.5)
+    is_peak = (smooth >= np.roll(smooth, 1)) & (smooth > np.roll(smooth, -1))
+    idx = np.flatnonzero(is_peak)
+    # mass of each peak: counts within ±15° (3 bins)
+    window = np.arange(-3, 4)
+    mass = hist[(idx[:, None] + window[None, :]) % nbins].sum(axis=1)
+    keep = mass >= min_mass
+    idx, mass = idx[keep], mass[keep]
+    order = np.argsort(-mass)
+    centres = (np.arange(nbins) + 0.5) * (2 * np.pi / nbins) - np.pi
+    chosen: list[float] = []
+    for i in idx[order]:
+        angle = centres[i]
+        if all(abs(_angle_diff(angle, c)) >= np.radians(min_separation_deg) for c in chosen):
+            chosen.append(angle)
+    return np.array(chosen, dtype=np.float64)
+
+
+def _angle_diff(a, b):
+    return (np.asarray(a) - np.asarray(b) + np.pi) % (2 * np.pi) - np.pi
+
+
+# --------------------------------------------------------------------------- detection
+
+
+def detect_cubes(
+    image: np.ndarray,
+    mirror_mask: np.ndarray,
+    *,
+    min_area: int = 80,
+    min_chroma: float = 0.08,
+    seed_chroma: float = 0.2,
+    min_face_contrast: float = 0.03,
+    edge_margin_px: int = 2,
+) -> list[CubeDetection]:
+    """Find coloured cubes reflected in the mirror and separate their front faces.
+
+    Coloured pixels (chroma = max − min of sRGB above `min_chroma`, grown by hysteresis
+    from seeds above `seed_chroma`) inside `mirror_mask` are grouped into connected blobs;
+    a blob holding several distinct hues (touching cubes of different colours) is split
+    by hue. Each blob's faces are separated by brightness (modes of the histogram of the
+    sRGB value max(R, G, B)); the largest connected region of one brightness is the front
+    face.
+
+    Parameters
+    ----------
+    image : (H, W, 3) float64
+        sRGB-encoded image in [0, 1] (an 8-bit PNG divided by 255).
+    mirror_mask : (H, W) bool
+        Pixels whose camera ray hits the mirror; only these are searched.
+    min_area : int
+        Smallest blob, in pixels, reported as a cube.
+    min_chroma, seed_chroma : float
+        Hysteresis thresholds on sRGB chroma. `min_chroma` is raised automatically above
+        the chroma noise of the mirror's background.
+    min_face_contrast : float
+        Smallest difference of sRGB value between two faces for them to be separated.
+    edge_margin_px : int
+        A blob closer than this to a pixel outside the mirror region (or to the image
+        border) is `cut_by_mirror_edge`.
+
+    Returns
+    -------
+    list of CubeDetection
+        Sorted by column of the blob centre. Cubes that are cut by the mirror's edge or
+        touch another blob are returned with `reason` set; the caller leaves them out.
+    """
+    image = _check_image(image)
+    height, width = image.shape[:2]
+    mirror_mask = _check_mask(mirror_mask, (height, width), "mirror_mask")
+    if min_area < 1:
+        raise DepthError(f"min_area: expected a positive pixel count, got {min_area}")
+    if not mirror_mask.any():
+        raise DepthError("mirror_mask: no pixel sees the mirror")
+
+    # Work on the mirror's bounding box, padded so that the image border counts as "outside".
+    rows = np.flatnonzero(mirror_mask.any(axis=1))
+    cols = np.flatnonzero(mirror_mask.any(axis=0))
+    pad = edge_margin_px + 2
+    r0, r1 = rows[0], rows[-1] + 1
+    c0, c1 = cols[0], cols[-1] + 1
+    rgb = np.zeros((r1 - r0 + 2 * pad, c1 - c0 + 2 * pad, 3))
+    rgb[pad:-pad, pad:-pad] = image[r0:r1, c0:c1]
+    inside = np.zeros(rgb.shape[:2], dtype=bool)
+    inside[pad:-pad, pad:-pad] = mirror_mask[r0:r1, c0:c1]
+
+    chroma, hue, value = _chroma_hue_value(rgb)
+    # Mirror boundary pixels mix the mirror with what is seen directly: skip one pixel.
+    search = cv2.erode(inside.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    near_outside = cv2.dilate(
+        (~inside).astype(np.uint8), np.ones((2 * edge_margin_px + 1,) * 2, np.uint8)
+    ).astype(bool)
+
+    background = chroma[search]
+    med = float(np.median(background))
+    mad = float(np.median(np.abs(background - med))) * 1.4826
+    low = max(min_chroma, med + 8.0 * mad)
+    high = max(seed_chroma, 1.5 * low)
+    weak = search & (chroma > low)
+    n_lab, labels = cv2.connectedComponents(weak.astype(np.uint8), connectivity=8)
+    seeded = np.zeros(n_lab, dtype=bool)
+    seeded[np.unique(labels[weak & (chroma > high)])] = True
+    seeded[0] = False
+    candidates = seeded[labels]
+
+    # Split blobs by hue; collect every coloured fragment for the occlusion test.
+    n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(
+        candidates.astype(np.uint8), connectivity=8
+    )
+    blob_masks: list[tuple[np.ndarray, tuple[int, int]]] = []  # (local mask, (row, col) offset)
+    fragments = np.zeros(rgb.shape[:2], dtype=np.int32)  # id of the coloured piece, 0 = none
+    next_id = 1
+    for lab in range(1, n_lab):
+        x, y, w, h, area = stats[lab]
+        if area < max(10, min_area // 4):
+            continue
+        sl = (slice(y, y + h), slice(x, x + w))
+        comp = labels[sl] == lab
+        reliable = comp & (chroma[sl] > 0.75 * high)
+        modes = _hue_modes(hue[sl][reliable], min_mass=max(10.0, 0.25 * min_area))
+        if len(modes) <= 1:
+            pieces = [comp]
+        else:
+            nearest = np.argmin(np.abs(_angle_diff(hue[sl][..., None], modes)), axis=-1)
+            pieces = []
+            for k in range(len(modes)):
+                sub = comp & (nearest == k)
+                n_sub, sub_lab, sub_stats, _ = cv2.connectedComponentsWithStats(
+                    sub.astype(np.uint8), connectivity=8
+                )
+                pieces.extend(sub_lab == j for j in range(1, n_sub) if sub_stats[j, 4] >= 10)
+        for piece in pieces:
+            fragments[sl][piece] = next_id
+            next_id += 1
+            if piece.sum() >= min_area:
+                blob_masks.append((piece, (y, x)))
+
+    detections = []
+    for local, (y, x) in blob_masks:
+        h, w = local.shape
+        sl = (slice(y, y + h), slice(x, x + w))
+        own_id = fragments[sl][local][0]
+        # Neighbourhood (2 px) of the blob, in a window grown by 2 px.
+        gy0, gx0 = max(y - 2, 0), max(x - 2, 0)
+        gy1, gx1 = min(y + h + 2, rgb.shape[0]), min(x + w + 2, rgb.shape[1])
+        grown = np.zeros((gy1 - gy0, gx1 - gx0), dtype=np.uint8)
+        grown[y - gy0 : y - gy0 + h, x - gx0 : x - gx0 + w] = local
+        grown = cv2.dilate(grown, np.ones((5, 5), np.uint8)).astype(bool)
+        neighbours = np.unique(fragments[gy0:gy1, gx0:gx1][grown])
+        occluded = bool(np.any((neighbours != 0) & (neighbours != own_id)))
+        cut = bool(np.any(near_outside[sl][local]))
+
+        front, sides = _split_faces(value[sl], chroma[sl], local, min_face_contrast)
+        reasons = []
+        if cut:
+            reasons.append("blob touches the edge of the mirror region (face may be cut)")
+        if occluded:
+            reasons.append("blob touches another cube (occlusion)")
+        if front.sum() < 0.25 * local.sum():
+            reasons.append("no dominant front face: faces could not be separated")
+        color = np.median(rgb[sl][front], axis=0) if front.any() else np.median(rgb[sl][local], axis=0)
+
+        # Back to full-image coordinates.
+        oy, ox = r0 - pad + y, c0 - pad + x
+
+        def full(m, oy=oy, ox=ox):
+            out = np.zeros((height, width), dtype=bool)
+            out[oy : oy + m.shape[0], ox : ox + m.shape[1]] = m
+            return out
+
+        rows_b = np.flatnonzero(local.any(axis=1))
+        cols_b = np.flatnonzero(local.any(axis=0))
+        bbox = (int(ox + cols_b[0]), int(oy + rows_b[0]), int(ox + cols_b[-1] + 1), int(oy + rows_b[-1] + 1))
+        detections.append(
+            CubeDetection(
+                mask=full(local),
+                front_face_mask=full(front),
+                side_face_masks=[full(s) for s in sides],
+                bbox=bbox,
+                color=np.asarray(color, dtype=np.float64),
+                cut_by_mirror_edge=cut,
+                occluded=occluded,
+                reason="; ".join(reasons) if reasons else None,
+            )
+        )
+    detections.sort(key=lambda d: (d.bbox[0] + d.bbox[2], d.bbox[1] + d.bbox[3]))
+    return detections
+
+
+def _split_faces(value: np.ndarray, chroma: np.ndarray, blob: np.ndarray, min_contrast: float):
+    """Front-face mask and other face masks of one blob (local arrays).
+
+    Faces are regions of nearly constant brightness separated by steps. Pixels where the
+    smoothed brightness (sRGB value) changes faster than noise and slow shading ramps
+    allow are edge pixels; the remaining pixels fall into connected regions, the largest
+    of which is the front face. Regions are then grown back over the edge pixels that
+    resemble them (same brightness, at least half the face's chroma).
+    """
+    smooth = ndimage.gaussian_filter(value, 0.7)
+    grad = np.hypot(ndimage.sobel(smooth, axis=0), ndimage.sobel(smooth, axis=1)) / 8.0
+    noise = float(np.percentile(grad[blob], 30))
+    flat = blob & (grad < max(0.25 * min_contrast, 5.0 * noise))
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(flat.astype(np.uint8), connectivity=4)
+    order = 1 + np.argsort(-stats[1:, 4]) if n > 1 else np.zeros(0, dtype=int)
+    if len(order) == 0:
+        return _clean_region(blob), []
+    grown = []
+    claimed = np.zeros_like(blob)
+    for rank, j in enumerate(order):
+        if rank > 0 and stats[j, 4] < 6:
+            break
+        core = lab == j
+        level = float(np.median(value[core]))
+        spread = 1.4826 * float(np.median(np.abs(value[core] - level)))
+        tol = max(0.5 * min_contrast, 3.0 * spread)
+        similar = blob & ~claimed & (np.abs(value - level) < tol) & (
+            chroma >= 0.5 * float(np.median(chroma[core]))
+        )
+        region = core.copy()
+        for _ in range(3):
+            region |= cv2.dilate(region.astype(np.uint8), _CROSS).astype(bool) & similar
+        region = _clean_region(region) if rank == 0 else region
+        claimed |= region
+        grown.append(region)
+    front = grown[0]
+    sides = [m & ~front for m in grown[1:]]
+    return front, [m for m in sides if m.sum() >= 10]
+
+
+_CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
+
+
+def _clean_region(mask: np.ndarray) -> np.ndarray:
+    """Fill holes, cut one-pixel spurs, keep the largest component."""
+    filled = ndimage.binary_fill_holes(mask)
+    opened = cv2.morphologyEx(filled.astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(opened, connectivity=4)
+    if n <= 1:
+        return filled
+    best = 1 + int(np.argmax(stats[1:, 4]))
+    return lab == best
+
+
+# ------------------------------------------------------------------------------- edges
+
+
+def face_outline(
+    image: np.ndarray,
+    face_mask: np.ndarray,
+    *,
+    corner_margin_px: float = 2.5,
+    profile_half_width_px: float = 1.5,
+    min_contrast: float = 0.02,
+    min_points_per_side: int = 5,
+    spacing_px: float = 1.0,
+) -> FaceOutline | FailedMeasurement:
+    """Sub-pixel outline of a face: edge points on its four sides, side fits and corners.
+
+    The face mask gives a first outline (its boundary, split into sides by the direction
+    of the outward normal). Then, three times: points are placed every `spacing_px` along
+    each fitted side (except within `corner_margin_px` of a corner), the linear-RGB
+    profile across the side is sampled on ±`profile_half_width_px` along the normal, and
+    the edge is put where the area under the normalised profile says the step is (exact
+    for an area-sampled step edge); the sides are refitted robustly (lines u = a·v + b
+    for left/right, quadratics v = a·u² + b·u + c for top/bottom) and intersected.
+
+    Parameters
+    ----------
+    image : (H, W, 3) float64
+        sRGB-encoded image in [0, 1].
+    face_mask : (H, W) bool
+        Rough mask of the face (e.g. `CubeDetection.front_face_mask`), within ~1 px.
+
+    Returns
+    -------
+    FaceOutline, or FailedMeasurement (falsy) with the reason when a side has too few
+    edge points, too little contrast, or the corners do not form a face.
+    """
+    image = _check_image(image)
+    height, width = image.shape[:2]
+    face_mask = _check_mask(face_mask, (height, width), "face_mask")
+    area = int(face_mask.sum())
+    if area < 12:
+        return FailedMeasurement(f"face mask has {area} pixels; too small to outline")
+    rows = np.flatnonzero(face_mask.any(axis=1))
+    cols = np.flatnonzero(face_mask.any(axis=0))
+    border = int(np.ceil(profile_half_width_px + corner_margin_px)) + 3
+    if rows[0] < 3 or cols[0] < 3 or rows[-1] > height - 4 or cols[-1] > width - 4:
+        return FailedMeasurement("face touches the image border")
+    r0, r1 = max(rows[0] - border, 0), min(rows[-1] + 1 + border, height)
+    c0, c1 = max(cols[0] - border, 0), min(cols[-1] + 1 + border, width)
+    linear = srgb_to_linear(image[r0:r1, c0:c1])
+    mask = face_mask[r0:r1, c0:c1]
+    origin = np.array([c0, r0], dtype=np.float64)
+
+    model = _initial_model(mask)
+    if isinstance(model, FailedMeasurement):
+        return model
+    L = profile_half_width_px
+    for half_width in (L, L, L, L):
+        result = _refine(linear, model, half_width, corner_margin_px, min_contrast,
+                         min_points_per_side, spacing_px)
+        if isinstance(result, FailedMeasurement):
+            return result
+        model = result
+    lines, quads, corners, sides, normals, rms, contrast, residuals = model
+    all_res = np.concatenate(residuals)
+    return FaceOutline(
+        sides=[s + origin for s in sides],
+        normals=normals,
+        corners_px=corners + origin,
+        lines=_shift_lines(lines, origin),
+        quadratics=_shift_quadratics(quads, origin),
+        side_rms_px=rms,
+        edge_noise_px=float(np.sqrt(np.mean(all_res**2))),
+        contrast=contrast,
+    )
+
+
+def _shift_lines(lines: np.ndarray, origin: np.ndarray) -> np.ndarray:
+    """u' = a·v' + b in a frame shifted by origin (u' = u + ou, v' = v + ov)."""
+    a, b = lines[:, 0], lines[:, 1]
+    return np.stack([a, b + origin[0] - a * origin[1]], axis=1)
+
+
+def _shift_quadratics(quads: np.ndarray, origin: np.ndarray) -> np.ndarray:
+    """v' = a·u'² + b·u' + c in a frame shifted by origin."""
+    a, b, c = quads[:, 0], quads[:, 1], quads[:, 2]
+    ou, ov = origin
+    return np.stack([a, b - 2 * a * ou, a * ou**2 - b * ou + c + ov], axis=1)
+
+
+def _robust_polyfit(x: np.ndarray, y: np.ndarray, degree: int, iterations: int = 3):
+    """Least-squares polynomial y(x) with iterative rejection of outliers (> 3·MAD, ≥ 0.3 px).
+
+    Returns (coefficients highest first, inlier mask)."""
+    keep = np.ones(len(x), dtype=bool)
+    coef = np.polyfit(x, y, degree)
+    for _ in range(iterations):
+        if keep.sum() <= degree + 1:
+            break
+        coef = np.polyfit(x[keep], y[keep], degree)
+        res = y - np.polyval(coef, x)
+        mad = np.median(np.abs(res[keep] - np.median(res[keep]))) * 1.4826
+        new_keep = np.abs(res) <= max(3.0 * mad, 0.3)
+        if np.array_equal(new_keep, keep):
+            break
+        keep = new_keep
+    if keep.sum() > degree + 1:
+        coef = np.polyfit(x[keep], y[keep], degree)
+    return coef, keep
+
+
+def _initial_model(mask: np.ndarray):
+    """First side fits from the face mask's boundary."""
+    contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    if not contours:
+        return FailedMeasurement("face mask has no outline")
+    contour = max(contours, key=len)[:, 0, :].astype(np.float64)  # (N, 2) u, v
+    smooth = ndimage.gaussian_filter(mask.astype(np.float64), 1.5)
+    gv, gu = np.gradient(smooth)
+    ci = contour.astype(int)
+    g = np.stack([gu[ci[:, 1], ci[:, 0]], gv[ci[:, 1], ci[:, 0]]], axis=1)
+    norm = np.linalg.norm(g, axis=1)
+    ok = norm > 1e-9
+    normals = -g[ok] / norm[ok, None]
+    points = contour[ok] + 0.5 * normals
+    horizontal = np.abs(normals[:, 0]) >= np.abs(normals[:, 1])
+    groups = [
+        horizontal & (normals[:, 0] < 0),
+        horizontal & (normals[:, 0] > 0),
+        ~horizontal & (normals[:, 1] < 0),
+        ~horizontal & (normals[:, 1] > 0),
+    ]
+    for name, grp in zip(SIDE_NAMES, groups):
+        if grp.sum() < 3:
+            return FailedMeasurement(f"face mask has no clear {name} side")
+    lines = np.array([_robust_polyfit(points[g, 1], points[g, 0], 1)[0] for g in groups[:2]])
+    quads = []
+    for g in groups[2:]:
+        u = points[g, 0]
+        degree = 2 if np.ptp(u) >= 12 and g.sum() >= 10 else 1
+        coef, _ = _robust_polyfit(u, points[g, 1], degree)
+        quads.append(np.r_[np.zeros(3 - len(coef)), coef])
+    quads = np.array(quads)
+    corners = _corners(lines, quads)
+    if isinstance(corners, FailedMeasurement):
+        return corners
+    return lines, quads, corners
+
+
+def _corners(lines: np.ndarray, quads: np.ndarray):
+    """Corners [TL, TR, BR, BL] = intersections of side lines and top/bottom quadratics."""
+    pairs = [(0, 0), (1, 0), (1, 1), (0, 1)]  # (line index, quadratic index)
+    out = np.empty((4, 2))
+    for k, (li, qi) in enumerate(pairs):
+        la, lb = lines[li]
+        qa, qb, qc = quads[qi]
+        # v = qa (la v + lb)² + qb (la v + lb) + qc
+        A = qa * la * la
+        B = 2 * qa * la * lb + qb * la - 1.0
+        C = qa * lb * lb + qb * lb + qc
+        if abs(A) < 1e-12 * max(1.0, abs(B)):
+            if abs(B) < 1e-12:
+                return FailedMeasurement("a side is parallel to the top or bottom")
+            v = -C / B
+        else:
+            disc = B * B - 4 * A * C
+            if disc < 0:
+                return FailedMeasurement("a side does not meet the top or bottom curve")
+            roots = (-B + np.array([1.0, -1.0]) * np.sqrt(disc)) / (2 * A)
+            # the root nearest the linearised solution (the quadratic's far root is spurious)
+            v_lin = -C / B if abs(B) > 1e-12 else roots[0]
+            v = roots[np.argmin(np.abs(roots - v_lin))]
+        out[k] = (la * v + lb, v)
+    tl, tr, br, bl = out
+    if not (tr[0] > tl[0] and br[0] > bl[0] and bl[1] > tl[1] and br[1] > tr[1]):
+        return FailedMeasurement("fitted sides do not enclose a face")
+    return out
+
+
+def _bilinear(img: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Bilinear samples of (h, w, 3) img at (u, v) → (..., 3)."""
+    coords = np.stack([v.ravel(), u.ravel()])
+    out = np.stack(
+        [ndimage.map_coordinates(img[..., c], coords, order=1, mode="nearest") for c in range(3)],
+        axis=-1,
+    )
+    return out.reshape(u.shape + (3,))
+
+
+def _side_samples(lines, quads, corners, margin, spacing):
+    """Points and outward normals along the current side model, corners excluded."""
+    tl, tr, br, bl = corners
+    pts, nrm = [], []
+    for i, (top, bot, sign) in enumerate([(tl, bl, -1.0), (tr, br, 1.0)]):
+        a, b = lines[i]
+        v = np.arange(top[1] + margin, bot[1] - margin + 1e-9, spacing)
+        u = a * v + b
+        n = sign * np.stack([np.ones_like(v), -a * np.ones_like(v)], axis=1) / np.hypot(1.0, a)
+        pts.append(np.stack([u, v], axis=1))
+        nrm.append(n)
+    for i, (left, right, sign) in enumerate([(tl, tr, -1.0), (bl, br, 1.0)]):
+        qa, qb, qc = quads[i]
+        u = np.arange(left[0] + margin, right[0] - margin + 1e-9, spacing)
+        v = (qa * u + qb) * u + qc
+        slope = 2 * qa * u + qb
+        n = sign * np.stack([-slope, np.ones_like(u)], axis=1) / np.hypot(1.0, slope)[:, None]
+        pts.append(np.stack([u, v], axis=1))
+        nrm.append(n)
+    return pts, nrm
+
+
+def _edge_offsets(linear, points, normals, half_width, step=0.25):
+    """Signed distance along the normal from each point to the edge, and the contrast.
+
+    The profile c(s), s ∈ [−L, L], is projected on the direction c_in − c_out
+    (c_in, c_out: the profile's ends, smoothed along the side), giving q(s) ≈ 1 inside and
+    0 outside; for a blurred step at s = e, ∫q ds = e + L.
+    """
+    s = np.arange(-half_width, half_width + step / 2, step)
+    u = points[:, 0:1] + s[None, :] * normals[:, 0:1]
+    v = points[:, 1:2] + s[None, :] * normals[:, 1:2]
+    prof = _bilinear(linear, u, v)  # (N, K, 3)
+    # Levels at exactly ±L: nearer samples mix in the edge through the bilinear footprint.
+    c_in = prof[:, 0]
+    c_out = prof[:, -1]
+    if len(points) >= 5:
+        # median along the side: less noise, yet keeps the steps of a textured background
+        c_in = ndimage.median_filter(c_in, size=(5, 1), mode="nearest")
+        c_out = ndimage.median_filter(c_out, size=(5, 1), mode="nearest")
+    d = c_in - c_out
+    dd = np.sum(d * d, axis=1)
+    safe = np.where(dd > 0, dd, 1.0)
+    q = np.einsum("nkc,nc->nk", prof - c_out[:, None, :], d) / safe[:, None]
+    area = np.sum((q[:, 1:] + q[:, :-1]) * 0.5, axis=1) * step
+    return area - half_width, np.sqrt(dd)
+
+
+def _refine(linear, model, half_width, margin, min_contrast, min_points, spacing):
+    lines, quads, corners = model[:3]
+    pts, nrm = _side_samples(lines, quads, corners, margin, spacing)
+    h, w = linear.shape[:2]
+    new_lines, new_quads, sides, normals, rms, contrast, residuals = [], [], [], [], [], [], []
+    for i, (p, n) in enumerate(zip(pts, nrm)):
+        name = SIDE_NAMES[i]
+        inside = (
+            (p[:, 0] - half_width >= 0) & (p[:, 0] + half_width <= w - 1)
+            & (p[:, 1] - half_width >= 0) & (p[:, 1] + half_width <= h - 1)
+        )
+        p, n = p[inside], n[inside]
+        if len(p) < min_points:
+            return FailedMeasurement(f"{name} side: {len(p)} edge points, need {min_points}")
+        e, c = _edge_offsets(linear, p, n, half_width)
+        good = (c >= min_contrast) & (np.abs(e) <= half_width - 0.5)
+        if good.sum() < min_points:
+            return FailedMeasurement(
+                f"{name} side: {int(good.sum())} edge points with contrast ≥ {min_contrast}, "
+                f"need {min_points} (median contrast {float(np.median(c)):.3f})"
+            )
+        q = p[good] + e[good, None] * n[good]
+        if i < 2:
+            coef, keep = _robust_polyfit(q[:, 1], q[:, 0], 1)
+            slope = np.full(len(q), coef[0])
+            res = (q[:, 0] - np.polyval(coef, q[:, 1])) / np.hypot(1.0, slope)
+            new_lines.append(coef)
+            nn = np.sign(n[good, 0:1]) * np.stack([np.ones_like(slope), -slope], axis=1) / np.hypot(1.0, slope)[:, None]
+        else:
+            degree = 2 if len(q) >= 6 else 1
+            coef, keep = _robust_polyfit(q[:, 0], q[:, 1], degree)
+            coef = np.r_[np.zeros(3 - len(coef)), coef]
+            slope = 2 * coef[0] * q[:, 0] + coef[1]
+            res = (q[:, 1] - np.polyval(coef, q[:, 0])) / np.hypot(1.0, slope)
+            new_quads.append(coef)
+            nn = np.sign(n[good, 1:2]) * np.stack([-slope, np.ones_like(slope)], axis=1) / np.hypot(1.0, slope)[:, None]
+        if keep.sum() < min_points:
+            return FailedMeasurement(f"{name} side: only {int(keep.sum())} consistent edge points")
+        sides.append(q[keep])
+        normals.append(nn[keep])
+        residuals.append(res[keep])
+        rms.append(float(np.sqrt(np.mean(res[keep] ** 2))))
+        contrast.append(float(np.median(c[good])))
+    lines_arr, quads_arr = np.array(new_lines), np.array(new_quads)
+    corners = _corners(lines_arr, quads_arr)
+    if isinstance(corners, FailedMeasurement):
+        return corners
+    return lines_arr, quads_arr, corners, sides, normals, np.array(rms), np.array(contrast), residuals
