@@ -38,6 +38,62 @@ def _not_available(verb: str):
     return run
 
 
+class Progress:
+    """A rich progress bar for library callbacks `progress(done, total)`; silent when not a terminal
+    and for work shorter than a second."""
+
+    def __init__(self, label: str):
+        self.label = label
+        self._bar = None
+        self._task = None
+        self._start = None
+
+    def __call__(self, done: int, total: int) -> None:
+        import time
+        if self._start is None:
+            self._start = time.monotonic()
+        if self._bar is None and time.monotonic() - self._start > 1.0 and sys.stderr.isatty():
+            from rich.progress import Progress as RichProgress
+            self._bar = RichProgress(transient=True)
+            self._bar.start()
+            self._task = self._bar.add_task(self.label, total=total)
+        if self._bar is not None:
+            self._bar.update(self._task, completed=done, total=total)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.stop()
+            self._bar = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+
+def _check_positive_int(value: int, flag: str) -> int:
+    if value < 1:
+        raise CatadioptricError(f"{flag}: expected an integer >= 1, got {value}")
+    return value
+
+
+def _cmd_simulate(args) -> int:
+    from catadioptric.setup import load_setup
+    from catadioptric.simulate import output_paths, simulate, write_simulation
+    spp = _check_positive_int(args.spp, "--spp")
+    if args.seed < 0:
+        raise CatadioptricError(f"--seed: expected an integer >= 0, got {args.seed}")
+    output_paths(args.output)  # validate the name before any work
+    setup = load_setup(args.setup)
+    with Progress("rendering") as bar:
+        sim = simulate(setup, spp=spp, seed=args.seed, progress=bar)
+    for path in write_simulation(sim, args.output):
+        print(path)
+    return 0
+
+
 def _cmd_demo(args) -> int:
     from catadioptric import demo
     return demo.run(args)
@@ -55,7 +111,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("-o", "--output", metavar="OUT.png", required=True)
     s.add_argument("--spp", type=int, default=4, help="samples per pixel at edges (default 4)")
     s.add_argument("--seed", type=int, default=0)
-    s.set_defaults(func=_not_available("simulate"))
+    s.set_defaults(func=_cmd_simulate)
 
     f = sub.add_parser("fit", help="fit virtual slits (XSlit/GLC) to the mirror's reflected rays")
     f.add_argument("setup", metavar="SETUP.toml")

@@ -30,6 +30,9 @@ class OutputSet:
             raise CatadioptricError(f"{final}: the output folder {folder} does not exist")
         fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.", suffix=".partial", dir=folder)
         os.close(fd)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; outputs get the usual permissions
         self._staged.append((Path(tmp), final))
         return Path(tmp)
 

@@ -345,14 +345,17 @@ class Setup:
     def build_scene(self):
         """The `raytrace.scene.Scene` of this setup (mirror, cubes, background, ground, light)."""
         from raytrace import scene as rs
-        kwargs = {}
+        m = self.mirror
+        ground = None
         if self.scene.ground:
-            kwargs["ground"] = rs.GroundPlane.below(self.mirror.build(), self.camera.build())
-        return rs.Scene(mirror=self.mirror.build(), objects=[o.build() for o in self.objects],
-                        background=self.scene.background,
-                        light=rs.DirectionalLight(direction=self.scene.light_direction,
-                                                  ambient=self.scene.ambient),
-                        **kwargs)
+            axis = np.asarray(m.axis, float) / np.linalg.norm(m.axis)
+            up = axis if np.dot(axis, self.camera.up) >= 0 else -axis
+            ground = rs.GroundPlane(point=np.asarray(m.center, float) - up * m.height / 2.0, normal=up,
+                                    checker=0.1)
+        light = rs.DirectionalLight(to_light=-np.asarray(self.scene.light_direction, float),
+                                    ambient=self.scene.ambient)
+        return rs.Scene(mirror=m.build(), objects=tuple(o.build() for o in self.objects),
+                        ground=ground, light=light, background=self.scene.background)
 
 
 def load_setup(path, require_mirror: bool = True) -> Setup:
