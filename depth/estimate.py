@@ -1,0 +1,426 @@
+"""Cube estimators: `estimate_face` turns one measured square face into a `CubeEstimate`.
+
+Each estimator works from the face's exact per-pixel reflected rays (a `RayFunction`, e.g.
+`raytrace.truth.mirror_rays` bound to the setup's camera and mirror) and the sub-pixel edge
+points of its four sides:
+
+- ``ddar``: a local two-slit fit over the face's rays gives an XSlit frame (z1, z2, θ1, θ2);
+  the side points are mapped into it, lines are fitted to each side, and the aspect ratio
+  r_i = κ_u/κ_v of the quadrilateral gives the depth by Eqn. getz with r_o = 1 (a square face),
+  then the size and the 3D centre by inverting Eqn. pinproj.
+- ``dds``: the depth from the image slopes of the face's two edge directions in the XSlit frame,
+  for a square turned in its plane relative to the slits (Eqn. lro + getz; the in-plane angle ψ
+  is solved with the depth). Edges parallel to the slits carry no slope cue: refused.
+- ``exact`` (beyond the paper): the pose and size of the square in 3D, as a non-central PnP:
+  each edge point's reflected ray must meet its side of the square. Seven unknowns (rotation
+  vector, face centre, edge length) are solved by `scipy.optimize.least_squares`, started
+  from ``ddar``. Any orientation is allowed.
+
+All estimates carry first-order standard deviations propagated from the edge-fit residuals.
+A face that cannot be estimated gives a falsy `FailedEstimate` with its reason.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from depth import ddar
+from depth.errors import DegenerateGeometryError, DepthError
+from depth.xslit import XSlit
+
+__all__ = ["METHODS", "FaceMeasurement", "CubeEstimate", "FailedEstimate", "estimate_face",
+           "LocalXSlit", "local_xslit"]
+
+METHODS = ("ddar", "dds", "exact")
+
+RayFunction = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+"""pixels (N, 2) float64 → (points (N, 3), directions (N, 3)): the exact reflected ray per pixel."""
+
+SIDES = ("left", "right", "top", "bottom")
+
+
+@dataclass(frozen=True)
+class FaceMeasurement:
+    """What the image gives about one square face.
+
+    sides_px : four (M_i, 2) float64 arrays of sub-pixel edge points, [left, right, top, bottom]
+    corners_px : (4, 2) float64, [top-left, top-right, bottom-right, bottom-left]
+    face_px : (P, 2) float64, pixel centres inside the face (for the local XSlit fit)
+    edge_noise_px : float, rms residual of the side fits in pixels
+    """
+
+    sides_px: tuple
+    corners_px: np.ndarray
+    face_px: np.ndarray
+    edge_noise_px: float = 0.1
+
+
+@dataclass(frozen=True)
+class CubeEstimate:
+    """One recovered cube (truthy). Keys of SETUP_FORMAT.md's result, plus diagnostics.
+
+    center, front_face_center : (3,) world metres; size : edge length; depth : distance from the
+    mirror axis to `center` (filled by the caller, who knows the mirror); normal : (3,) the front
+    face's outward normal (toward the mirror); std : first-order σ of 'z', 'size', 'center'.
+    """
+
+    method: str
+    center: np.ndarray
+    size: float
+    z: float
+    front_face_center: np.ndarray
+    normal: np.ndarray
+    aspect_ratio: float
+    std: dict
+    xslit: dict = field(default_factory=dict)
+    rms_residual: float = float("nan")
+
+    def __bool__(self) -> bool:
+        return True
+
+
+@dataclass(frozen=True)
+class FailedEstimate:
+    """An estimate that could not be made (falsy), with its reason."""
+
+    method: str
+    reason: str
+
+    def __bool__(self) -> bool:
+        return False
+
+
+@dataclass(frozen=True)
+class LocalXSlit:
+    """The local XSlit of a face: frame axes (rows e_x, e_y, e_z), origin, and the `XSlit` in it.
+
+    `vertical` is 0 when the face's left/right sides run along κ_1 (slit 1's direction), else 1.
+    """
+
+    origin: np.ndarray
+    axes: np.ndarray
+    xslit: XSlit
+    rms_distance: float
+    slits: tuple
+    vertical: int = 0
+
+    def plane_uv(self, points: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        """(u, v) where rays meet the frame's plane z = 0 : (N, 2)."""
+        p = (points - self.origin) @ self.axes.T
+        d = directions @ self.axes.T
+        t = -p[:, 2] / d[:, 2]
+        return p[:, :2] + t[:, None] * d[:, :2]
+
+    def to_world(self, frame_points: np.ndarray) -> np.ndarray:
+        return frame_points @ self.axes + self.origin
+
+    def to_frame(self, world_points: np.ndarray) -> np.ndarray:
+        return (world_points - self.origin) @ self.axes.T
+
+
+def local_xslit(rays: RayFunction, face_px: np.ndarray, max_rays: int = 3000, seed: int = 0):
+    """Fit the two virtual slits of a face's rays; returns `LocalXSlit` or a falsy `FailedFit`."""
+    from xslit_fit.fit import fit_two_slits
+    from xslit_fit.frame import XSlitFrame
+
+    px = np.asarray(face_px, dtype=np.float64)
+    if len(px) > max_rays:
+        px = px[np.random.default_rng(seed).choice(len(px), max_rays, replace=False)]
+    points, directions = rays(px)
+    ok = np.all(np.isfinite(points), axis=1) & np.all(np.isfinite(directions), axis=1)
+    fit = fit_two_slits(points[ok], directions[ok])
+    if not fit:
+        return fit
+    frame = XSlitFrame.from_fit(fit)
+    axes = np.stack([frame.e_x, frame.e_y, frame.e_z])
+    xs = XSlit(frame.z1, frame.z2, frame.theta1, frame.theta2)
+    return LocalXSlit(origin=np.asarray(frame.origin, float), axes=axes, xslit=xs,
+                      rms_distance=float(fit.rms_distance), slits=tuple(fit.slits))
+
+
+def _fit_line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Total-least-squares line: (centroid (2,), unit direction (2,), rms orthogonal residual)."""
+    c = points.mean(axis=0)
+    _, s, vt = np.linalg.svd(points - c, full_matrices=False)
+    rms = s[-1] / np.sqrt(len(points)) if len(s) > 1 else 0.0
+    return c, vt[0], float(rms)
+
+
+def _intersect(c1, d1, c2, d2) -> np.ndarray:
+    a = np.column_stack([d1, -d2])
+    t = np.linalg.solve(a, c2 - c1)
+    return c1 + t[0] * d1
+
+
+def _face_in_kappa(local: LocalXSlit, rays: RayFunction, sides_px) -> dict:
+    """Side lines and corners of the face in κ coordinates of the local XSlit."""
+    lines, res, counts = [], [], []
+    for pts in sides_px:
+        p, d = rays(np.asarray(pts, dtype=np.float64))
+        ok = np.all(np.isfinite(p), axis=1)
+        if ok.sum() < 3:
+            raise DepthError("sides_px: a side has fewer than 3 edge points on the mirror")
+        k = local.xslit.to_kappa(local.plane_uv(p[ok], d[ok]))
+        c, u, rms = _fit_line(k)
+        lines.append((c, u))
+        res.append(rms)
+        counts.append(int(ok.sum()))
+    (cl, ul), (cr, ur), (ct, ut), (cb, ub) = lines
+    corners = np.array([_intersect(cl, ul, ct, ut), _intersect(cr, ur, ct, ut),
+                        _intersect(cr, ur, cb, ub), _intersect(cl, ul, cb, ub)])
+    return {"corners": corners, "rms": np.array(res), "counts": np.array(counts),
+            "dirs": np.array([ul, ur, ut, ub])}
+
+
+def _extents(corners: np.ndarray, vertical: int) -> tuple[float, float]:
+    """Mean extent of the vertical sides along κ[vertical] and of the horizontal sides along the other."""
+    h = 1 - vertical
+    ext_v = 0.5 * (abs(corners[3, vertical] - corners[0, vertical]) + abs(corners[2, vertical] - corners[1, vertical]))
+    ext_h = 0.5 * (abs(corners[1, h] - corners[0, h]) + abs(corners[2, h] - corners[3, h]))
+    return ext_v, ext_h
+
+
+def _ddar(local: LocalXSlit, kap: dict, cube_size: float | None) -> CubeEstimate:
+    xs = local.xslit
+    # Which κ axis do the vertical (left/right) sides run along?
+    vertical = int(np.argmax(np.abs(kap["dirs"][:2]).mean(axis=0)))
+    ext_v, ext_h = _extents(kap["corners"], vertical)
+    k1, k2 = (ext_v, ext_h) if vertical == 0 else (ext_h, ext_v)  # extents along v1, v2
+    r_i = k1 / k2
+    # σ of each extent from the side-line residuals (two sides, each offset σ ≈ rms/√M).
+    side_sigma = kap["rms"] / np.sqrt(np.maximum(kap["counts"], 1))
+    sig_v = np.hypot(side_sigma[0], side_sigma[1])
+    sig_h = np.hypot(side_sigma[2], side_sigma[3])
+    s1, s2 = (sig_v, sig_h) if vertical == 0 else (sig_h, sig_v)
+    if cube_size is None:
+        z = float(ddar.depth_from_aspect_ratio(r_i, xs.z1, xs.z2, 1.0))
+        sigma_r = r_i * np.hypot(s1 / k1, s2 / k2)
+        z_std = float(ddar.depth_std_from_aspect_ratio(r_i, sigma_r, xs.z1, xs.z2, 1.0))
+        su, sv = xs.kappa_scales(z)
+        size_1, size_2 = k1 / su, k2 / sv
+        size = 0.5 * (size_1 + size_2)
+        # size = κ/s(z): its σ follows z's and the extents'.
+        dz = 1e-6 * max(abs(z), 1e-9)
+        su2, sv2 = xs.kappa_scales(z + dz)
+        dsize_dz = 0.5 * ((k1 / su2 + k2 / sv2) - (k1 / su + k2 / sv)) / dz
+        size_std = float(np.hypot(dsize_dz * z_std, 0.5 * np.hypot(s1 / su, s2 / sv)))
+    else:
+        # Known edge length: each extent alone gives z (κ = s(z)·size); least squares over both.
+        size = float(cube_size)
+
+        def resid(zz):
+            su, sv = xs.kappa_scales(zz[0])
+            return [(su * size - k1) / s1 if s1 > 0 else su * size - k1,
+                    (sv * size - k2) / s2 if s2 > 0 else sv * size - k2]
+        z0 = float(ddar.depth_from_aspect_ratio(r_i, xs.z1, xs.z2, 1.0, strict=False))
+        if not np.isfinite(z0):
+            z0 = 1.0 * max(abs(xs.z1), abs(xs.z2))
+        sol = least_squares(resid, [z0], bounds=([ddar.near_depth(xs.z1, xs.z2) + 1e-9], [np.inf]))
+        z = float(sol.x[0])
+        jt = sol.jac
+        z_std = float(np.sqrt(1.0 / max((jt.T @ jt)[0, 0], 1e-300)))
+        size_std = 0.0
+    # Face centre: the κ centre of the quadrilateral, back-projected at depth z.
+    k_center = kap["corners"].mean(axis=0)
+    uv = xs.from_kappa(k_center[None])
+    face_center_f = xs.back_project(uv, z)[0]
+    face_center = local.to_world(face_center_f[None])[0]
+    e_z = local.axes[2]
+    center = face_center + e_z * size / 2.0
+    std = {"z": z_std, "size": size_std, "center": float(np.hypot(z_std, size_std / 2.0))}
+    return CubeEstimate(method="ddar", center=center, size=float(size), z=z, front_face_center=face_center,
+                        normal=-e_z, aspect_ratio=float(r_i), std=std,
+                        xslit=_xslit_info(local), rms_residual=float(np.mean(kap["rms"])))
+
+
+def _xslit_info(local: LocalXSlit) -> dict:
+    xs = local.xslit
+    return {"z1": xs.z1, "z2": xs.z2, "theta1_deg": float(np.rad2deg(xs.theta1)),
+            "theta2_deg": float(np.rad2deg(xs.theta2)), "rms_ray_distance": local.rms_distance,
+            "slits": [{"point": s.point.tolist(), "direction": s.direction.tolist()} for s in local.slits]}
+
+
+def _dds(local: LocalXSlit, kap: dict) -> CubeEstimate | FailedEstimate:
+    """Depth from the slopes of the face's two edge directions (a square turned in its plane by ψ)."""
+    from depth import dds
+    xs = local.xslit
+    d = kap["dirs"]
+    phi_a = np.arctan2(d[0, 1] + d[1, 1], d[0, 0] + d[1, 0]) if d[0] @ d[1] > 0 else \
+        np.arctan2(d[0, 1] - d[1, 1], d[0, 0] - d[1, 0])
+    phi_b = np.arctan2(d[2, 1] + d[3, 1], d[2, 0] + d[3, 0]) if d[2] @ d[3] > 0 else \
+        np.arctan2(d[2, 1] - d[3, 1], d[2, 0] - d[3, 0])
+    # Directions are measured in κ coordinates; convert to plane angles.
+    a_uv = xs.from_kappa(np.array([[np.cos(phi_a), np.sin(phi_a)], [np.cos(phi_b), np.sin(phi_b)]]))
+    ang = np.arctan2(a_uv[:, 1], a_uv[:, 0])
+    tol = np.deg2rad(2.0)
+    for th in (xs.theta1, xs.theta2):
+        if np.any(np.abs(np.sin(ang - th)) < np.sin(tol)):
+            return FailedEstimate("dds", "edges parallel to a slit (within 2°): their slopes carry no depth")
+    try:
+        r_a = dds.ratio_from_angle(ang[0], xs)
+        r_b = dds.ratio_from_angle(ang[1], xs)
+    except DegenerateGeometryError as exc:
+        return FailedEstimate("dds", str(exc))
+
+    def resid(p):
+        z, psi = p
+        ra = ddar.aspect_ratio(z, xs.z1, xs.z2, dds.ratio_from_angle(psi, xs))
+        rb = ddar.aspect_ratio(z, xs.z1, xs.z2, dds.ratio_from_angle(psi + np.pi / 2, xs))
+        return [np.arctan(ra) - np.arctan(r_a), np.arctan(rb) - np.arctan(r_b)]
+
+    zn = ddar.near_depth(xs.z1, xs.z2)
+    best = None
+    for z0 in zn + np.geomspace(0.5, 50, 6) * max(abs(xs.z1), abs(xs.z2)):
+        for psi0 in np.linspace(-np.pi / 2, np.pi / 2, 13)[:-1]:
+            try:
+                sol = least_squares(resid, [z0, psi0], bounds=([zn + 1e-9, -np.pi], [np.inf, np.pi]))
+            except (DegenerateGeometryError, ValueError):
+                continue
+            if best is None or sol.cost < best.cost:
+                best = sol
+    if best is None or best.cost > 1e-10:
+        return FailedEstimate("dds", "no depth and in-plane angle fit both edge slopes")
+    z = float(best.x[0])
+    # Size and centre: back-project the κ corners at depth z; the square's edges give its size.
+    corners3 = local.to_world(xs.back_project(xs.from_kappa(kap["corners"]), z))
+    size = float(np.mean(np.linalg.norm(corners3 - np.roll(corners3, -1, axis=0), axis=1)))
+    face_center = corners3.mean(axis=0)
+    e_z = local.axes[2]
+    # σ of z from the angle noise of the edge directions (rms/extent of each side line).
+    sig_angle = float(np.mean(kap["rms"]) / max(np.ptp(kap["corners"], axis=0).min(), 1e-12))
+    z_std = float(dds.depth_std_from_angle(ang[0], np.tan(best.x[1]), sig_angle, xs))
+    return CubeEstimate(method="dds", center=face_center + e_z * size / 2.0, size=size, z=z,
+                        front_face_center=face_center, normal=-e_z, aspect_ratio=float(r_a),
+                        std={"z": z_std, "size": size / z * z_std if z else float("nan"),
+                             "center": z_std}, xslit=_xslit_info(local),
+                        rms_residual=float(np.mean(kap["rms"])))
+
+
+def _square_axes(rotvec: np.ndarray, base: np.ndarray) -> np.ndarray:
+    """Rows (e_vertical, e_horizontal, normal) of the face, rotated by `rotvec` from `base`."""
+    return Rotation.from_rotvec(rotvec).as_matrix() @ base.T
+
+
+def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local: LocalXSlit,
+           cube_size: float | None) -> CubeEstimate | FailedEstimate:
+    """Non-central PnP of the square face from the exact rays of its edge points."""
+    pts, dirs, side_id = [], [], []
+    for i, sp in enumerate(meas.sides_px):
+        p, d = rays(np.asarray(sp, dtype=np.float64))
+        ok = np.all(np.isfinite(p), axis=1)
+        pts.append(p[ok]), dirs.append(d[ok]), side_id.append(np.full(ok.sum(), i))
+    p, d, sid = np.concatenate(pts), np.concatenate(dirs), np.concatenate(side_id)
+    # Base axes: vertical = along the local slit of the vertical sides, normal = toward the mirror.
+    n0 = start.normal / np.linalg.norm(start.normal)
+    vert_world = local.axes[0] if local.vertical == 0 else local.axes[1]
+    # The frame's vertical axis is the slit direction; orthogonalise against the normal.
+    v0 = vert_world - (vert_world @ n0) * n0
+    v0 /= np.linalg.norm(v0)
+    h0 = np.cross(n0, v0)
+    base = np.stack([v0, h0, n0], axis=1)  # columns
+    c0 = start.front_face_center
+    s0 = start.size if cube_size is None else cube_size
+    # Side signs: where each side lies in the face's (a = vertical, b = horizontal) coordinates.
+    t0 = ((c0 - p) @ n0) / (d @ n0)
+    q0 = p + t0[:, None] * d - c0
+    a0, b0 = q0 @ v0, q0 @ h0
+    sign = np.array([np.sign(np.mean(b0[sid == 0])), np.sign(np.mean(b0[sid == 1])),
+                     np.sign(np.mean(a0[sid == 2])), np.sign(np.mean(a0[sid == 3]))])
+    if np.any(sign == 0) or sign[0] == sign[1] or sign[2] == sign[3]:
+        return FailedEstimate("exact", "the sides do not bound a quadrilateral around the face centre")
+    is_lr = sid < 2
+    scale = max(s0, 1e-6)
+
+    def unpack(x):
+        rot = x[:3]
+        c = c0 + x[3:6] * scale
+        s = s0 * np.exp(x[6]) if cube_size is None else cube_size
+        return rot, c, s
+
+    def resid(x):
+        rot, c, s = unpack(x)
+        axes = _square_axes(rot, base)  # rows: vertical, horizontal, normal
+        n = axes[2]
+        t = ((c - p) @ n) / (d @ n)
+        q = p + t[:, None] * d - c
+        a, b = q @ axes[0], q @ axes[1]
+        coord = np.where(is_lr, b, a)
+        return (coord - sign[sid] * s / 2.0) / scale
+
+    x0 = np.zeros(7)
+    sol = least_squares(resid, x0, method="trf", loss="soft_l1", f_scale=0.01, x_scale="jac",
+                        max_nfev=200)
+    if not sol.success and sol.status <= 0:
+        return FailedEstimate("exact", f"least squares did not converge ({sol.message})")
+    rot, c, s = unpack(sol.x)
+    axes = _square_axes(rot, base)
+    normal = axes[2]
+    center = c - normal * s / 2.0  # the normal points toward the mirror; the cube lies behind the face
+    r = sol.fun
+    dof = max(len(r) - 7, 1)
+    sigma2 = float(r @ r) / dof
+    j = sol.jac
+    try:
+        cov = np.linalg.pinv(j.T @ j) * sigma2
+    except np.linalg.LinAlgError:
+        cov = np.full((7, 7), np.nan)
+    # Propagate to the centre, size and z numerically.
+    def derived(x):
+        rr, cc, ss = unpack(x)
+        nn = _square_axes(rr, base)[2]
+        ctr = cc - nn * ss / 2.0
+        return np.r_[ctr, ss, local.to_frame(ctr[None])[0, 2]]
+    f0 = derived(sol.x)
+    jac_d = np.empty((5, 7))
+    for k in range(7):
+        dx = np.zeros(7)
+        dx[k] = 1e-6
+        jac_d[:, k] = (derived(sol.x + dx) - derived(sol.x - dx)) / 2e-6
+    cov_d = jac_d @ cov @ jac_d.T
+    sd = np.sqrt(np.maximum(np.diag(cov_d), 0.0))
+    std = {"z": float(sd[4]), "size": float(sd[3]), "center": float(np.sqrt(np.sum(sd[:3] ** 2)))}
+    return CubeEstimate(method="exact", center=f0[:3], size=float(s), z=float(f0[4]), front_face_center=c,
+                        normal=normal, aspect_ratio=start.aspect_ratio, std=std,
+                        xslit=start.xslit, rms_residual=float(np.sqrt(np.mean(r ** 2))) * scale)
+
+
+def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact",
+                  cube_size: float | None = None, seed: int = 0):
+    """Estimate one cube from its measured front face; returns `CubeEstimate` or `FailedEstimate`.
+
+    Parameters
+    ----------
+    rays : RayFunction
+        Exact reflected rays of sub-pixel positions.
+    meas : FaceMeasurement
+    method : "ddar", "dds" or "exact"
+    cube_size : float, optional
+        A known edge length (metres); otherwise the image fixes it.
+    """
+    if method not in METHODS:
+        raise DepthError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
+    if cube_size is not None and not (np.isfinite(cube_size) and cube_size > 0):
+        raise DepthError(f"cube_size: expected a positive edge length in metres, got {cube_size}")
+    local = local_xslit(rays, meas.face_px, seed=seed)
+    if not local:
+        return FailedEstimate(method, f"local XSlit fit failed: {local.reason}")
+    try:
+        kap = _face_in_kappa(local, rays, meas.sides_px)
+    except (DepthError, np.linalg.LinAlgError) as exc:
+        return FailedEstimate(method, f"face outline in the XSlit frame: {exc}")
+    vertical = int(np.argmax(np.abs(kap["dirs"][:2]).mean(axis=0)))
+    local = LocalXSlit(local.origin, local.axes, local.xslit, local.rms_distance, local.slits, vertical)
+    if method == "dds":
+        return _dds(local, kap)
+    try:
+        start = _ddar(local, kap, cube_size)
+    except DepthError as exc:
+        return FailedEstimate(method, f"aspect ratio: {exc}")
+    if method == "ddar":
+        return start
+    return _exact(rays, meas, start, local, cube_size)
