@@ -7,7 +7,9 @@ and local fit maps. This package never reads or writes files and never prints.
 from .errors import FitError
 from .fit import REASONS, FailedFit, SlitFit, fit_two_slits
 from .frame import PixelFrame, XSlitFrame, frame_for_pixels, interpolate_rays
+from .glc import GLC, GLC_TYPES, fit_glc, glc_type
 from .plucker import Line, lines_through_four, plucker, ray_line_distance, reciprocal_product
+from .tiles import TileMap, fit_tiles
 
 __all__ = [
     "FitError",
@@ -24,4 +26,10 @@ __all__ = [
     "PixelFrame",
     "interpolate_rays",
     "frame_for_pixels",
+    "GLC",
+    "GLC_TYPES",
+    "fit_glc",
+    "glc_type",
+    "TileMap",
+    "fit_tiles",
 ]

@@ -31,6 +31,7 @@ REASONS = (
     "ill-conditioned",
     "complex roots",
     "double root (one slit)",
+    "double root at infinity (twisted orthographic)",
     "slit at infinity (pushbroom)",
     "slits intersect",
     "degenerate rays",
@@ -137,7 +138,8 @@ def fit_two_slits(points, directions, weights=None, refine: bool = True, *,
         Rays whose directions differ by less than this (radians) are "parallel rays".
     pinhole_ratio : float
         Fail as a pencil when one point explains the rays with an rms distance within this
-        factor of the two slits' rms distance (a noisy pinhole must not yield slits).
+        factor of the two slits' rms distance and below 1 % of the bundle's size (a noisy
+        pinhole must not yield slits).
     max_refine_rays : int
         The refinement uses a seeded random subset of at most this many rays; the reported
         distances are always computed over all rays.
@@ -192,10 +194,11 @@ def fit_two_slits(points, directions, weights=None, refine: bool = True, *,
         return FailedFit("slits intersect", n, condition,
                          detail="the null space is a planar pencil of lines")
     if kind == "double":
-        at_inf = np.linalg.norm(roots[0][:3]) <= 1e-9
+        if np.linalg.norm(roots[0][:3]) <= 1e-9:
+            return FailedFit("double root at infinity (twisted orthographic)", n, condition,
+                             detail="rays parallel to one plane with no finite slit")
         return FailedFit("double root (one slit)", n, condition,
-                         detail="the two slits coincide (GLC pencil camera)"
-                         + (" at infinity (twisted orthographic)" if at_inf else ""))
+                         detail="the two slits coincide (GLC pencil camera)")
     if min(np.linalg.norm(x[:3]) for x in roots) <= 1e-9:
         return FailedFit("slit at infinity (pushbroom)", n, condition,
                          detail="one slit is the line at infinity of the rays' direction plane")
@@ -217,7 +220,7 @@ def fit_two_slits(points, directions, weights=None, refine: bool = True, *,
     rms = float(np.sqrt(np.sum(wn[:, None] * dist**2) / 2.0))
     if not np.isfinite(rms):
         return FailedFit("refinement failed", n, condition, detail="non-finite distances")
-    if scale * centre_rms <= pinhole_ratio * rms:
+    if centre_rms <= 0.01 and scale * centre_rms <= pinhole_ratio * rms:
         return FailedFit("pencil (single centre of projection)", n, condition,
                          detail=f"one point explains the rays as well as two slits "
                                 f"(rms {scale * centre_rms:.3g} vs {rms:.3g})")
@@ -288,6 +291,16 @@ def _perp_basis(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return e1, np.cross(u, e1)
 
 
+def _signed_distance(rel: np.ndarray, d: np.ndarray, v: np.ndarray):
+    """Signed distance of lines (rel + t·d) to the line through 0 along v, with ĝ, |g|.
+
+    g = d × v; a ray parallel to the slit gets |g| clamped to 1e-300 (no exact zero)."""
+    g = cross(d, v)
+    g_norm = np.maximum(np.sqrt(np.einsum("ij,ij->i", g, g)), 1e-300)
+    g_hat = g / g_norm[:, None]
+    return np.einsum("ij,ij->i", rel, g_hat), g_hat, g_norm
+
+
 def _refine(lines, rel, d, wn, max_rays: int, seed: int):
     """Least-squares refinement of two slits (normalised coordinates); None on failure."""
     if len(rel) > max_rays:
@@ -300,21 +313,33 @@ def _refine(lines, rel, d, wn, max_rays: int, seed: int):
         out = []
         for k, (q, u, e1, e2) in enumerate(bases):
             a, b, s, t = x[4 * k: 4 * k + 4]
-            v = u + a * e1 + b * e2
-            out.append((q + s * e1 + t * e2, v / np.linalg.norm(v)))
+            out.append((q + s * e1 + t * e2, u + a * e1 + b * e2))   # direction unnormalised
         return out
 
     def residuals(x):
         return np.concatenate([
-            sw * _distance_to_line(rel - q, d, u, signed=True) for q, u in unpack(x)])
+            sw * _signed_distance(rel - q, d, v)[0] for q, v in unpack(x)])
+
+    def jacobian(x):
+        jac = np.zeros((2 * len(rel), 8))
+        for k, ((q, v), (_, _, e1, e2)) in enumerate(zip(unpack(x), bases)):
+            r, g_hat, g_norm = _signed_distance(rel - q, d, v)
+            # r = k·ĝ with k = P − q, g = D × v:  ∂r/∂v = ((k − r ĝ) × D) / |g|,  ∂r/∂q = −ĝ
+            dr_dv = cross((rel - q) - r[:, None] * g_hat, d) / g_norm[:, None]
+            rows = slice(k * len(rel), (k + 1) * len(rel))
+            jac[rows, 4 * k + 0] = dr_dv @ e1
+            jac[rows, 4 * k + 1] = dr_dv @ e2
+            jac[rows, 4 * k + 2] = -g_hat @ e1
+            jac[rows, 4 * k + 3] = -g_hat @ e2
+        return jac * np.concatenate([sw, sw])[:, None]
 
     try:
-        res = least_squares(residuals, np.zeros(8), method="lm", x_scale="jac",
-                            xtol=1e-13, ftol=1e-13, gtol=1e-13, max_nfev=800)
+        res = least_squares(residuals, np.zeros(8), jac=jacobian, method="lm", x_scale="jac",
+                            xtol=1e-14, ftol=1e-14, gtol=1e-14, max_nfev=200)
     except (ValueError, np.linalg.LinAlgError):
         return None
     if not np.all(np.isfinite(res.x)):
         return None
-    lines = unpack(res.x)
+    lines = [(q, v / np.linalg.norm(v)) for q, v in unpack(res.x)]
     # Re-express each point as the point of its line nearest the centroid (the origin here).
     return [(q - (q @ u) * u, u) for q, u in lines]
