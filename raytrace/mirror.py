@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import trimesh
 
+from ._embree import build_scene, first_hits
 from ._validate import as_positive, as_rays, as_unit, as_vector
 from .errors import RaytraceError
 
@@ -210,7 +211,7 @@ class MeshMirror:
         self._vertices = np.asarray(mesh.vertices, dtype=np.float64)
         self._faces = np.asarray(mesh.faces, dtype=np.int64)
         self._vertex_normals = np.asarray(mesh.vertex_normals, dtype=np.float64)
-        self._intersector = None
+        self._embree = None
 
     def mesh(self, sections: int | None = None) -> trimesh.Trimesh:
         """The mirror's own mesh (`sections` is ignored)."""
@@ -232,16 +233,12 @@ class MeshMirror:
         return t, p, n
 
     def intersect(self, origins, directions):
-        """First hit (numpy ray-triangle), with interpolated normals; same returns as `CylinderMirror.intersect`."""
+        """First hit (Embree, refined in float64), with interpolated normals; same returns as `CylinderMirror.intersect`."""
         o, d = as_rays(origins, directions)
-        if self._intersector is None:
-            self._intersector = trimesh.ray.ray_triangle.RayMeshIntersector(self._mesh)
-        n = len(o)
-        prim = np.full(n, -1, dtype=np.int64)
-        if n:
-            tri, ray = self._intersector.intersects_id(o, d, multiple_hits=False)
-            prim[ray] = tri
-        return self.refine_hits(o, d, np.zeros(n), prim)
+        if self._embree is None:
+            self._embree = build_scene(self._vertices[self._faces])
+        prim = first_hits(self._embree, o, d)
+        return self.refine_hits(o, d, np.zeros(len(o)), prim)
 
     def refine_hits(self, origins, directions, t_guess, prim_id=None, uv=None):
         """Exact hit on triangle `prim_id` (N,) int (−1: none); returns t, hit, points, normals."""

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._embree import build_scene, first_hits
 from .camera import sample_offsets
 from .errors import RaytraceError
 from .mirror import EPS_T, CylinderMirror, reflect
@@ -95,19 +96,10 @@ class _Geometry:
             self.colors = np.zeros((0, 3))
 
 
-def _embree_run(escene, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
-    """The one place where rays are cast to Embree's float32; returns primitive ids (N,) int."""
-    o32 = np.ascontiguousarray(origins, dtype=np.float32)
-    d32 = np.ascontiguousarray(directions, dtype=np.float32)
-    return np.asarray(escene.run(o32, d32), dtype=np.int64)
-
-
 class _EmbreeTracer:
     """All triangles merged in one Embree mesh (a primitive-id lookup gives geometry and face)."""
 
     def __init__(self, geo: _Geometry, mirror_sections: int = 720):
-        from embreex import mesh_construction, rtcore_scene
-
         self.geo = geo
         scene = geo.scene
         parts = []  # (triangles (T, 3, 3), gid, local prim ids)
@@ -130,9 +122,7 @@ class _EmbreeTracer:
             tris = np.concatenate([p[0] for p in sel])
             gids = np.concatenate([np.full(len(p[0]), p[1]) for p in sel])
             local = np.concatenate([p[2] for p in sel])
-            es = rtcore_scene.EmbreeScene()
-            mesh_construction.TriangleMesh(es, np.ascontiguousarray(tris, dtype=np.float32))
-            self.scenes[with_mirror] = es
+            self.scenes[with_mirror] = build_scene(tris)
             self.lookups[with_mirror] = (np.append(gids, -1), np.append(local, -1))
 
     def first_hit(self, o, d, with_mirror: bool):
@@ -140,7 +130,7 @@ class _EmbreeTracer:
         es = self.scenes[with_mirror]
         if es is None or len(o) == 0:
             return np.full(len(o), -1), np.full(len(o), -1), None
-        prim = _embree_run(es, o, d)
+        prim = first_hits(es, o, d)
         gids, local = self.lookups[with_mirror]
         return gids[prim], local[prim], None
 
