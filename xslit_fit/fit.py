@@ -115,7 +115,8 @@ class FailedFit:
 
 def fit_two_slits(points, directions, weights=None, refine: bool = True, *,
                   max_condition: float = 1e9, degenerate_tol: float = 1e-11,
-                  parallel_tol: float = 1e-12, pinhole_ratio: float = 1.5,
+                  parallel_tol: float = 1e-12, pinhole_tol: float = 1e-6,
+                  pinhole_ratio: float = 1.5,
                   max_refine_rays: int = 10000, seed: int = 0):
     """Fit two slits (an XSlit camera) to a bundle of rays.
 
@@ -136,6 +137,9 @@ def fit_two_slits(points, directions, weights=None, refine: bool = True, *,
         coplanar rays).
     parallel_tol : float
         Rays whose directions differ by less than this (radians) are "parallel rays".
+    pinhole_tol : float
+        Fail as a pencil when every ray passes within this fraction of the bundle's size
+        (rms distance of the rays from their centroid) of one point.
     pinhole_ratio : float
         Fail as a pencil when one point explains the rays with an rms distance within this
         factor of the two slits' rms distance and below 1 % of the bundle's size (a noisy
@@ -173,10 +177,11 @@ def fit_two_slits(points, directions, weights=None, refine: bool = True, *,
     rel_sv = sv / sv[0]
 
     centre, centre_rms = _nearest_point(rel, d, wn)
+    if centre_rms <= pinhole_tol:
+        return FailedFit("pencil (single centre of projection)", n, condition,
+                         detail=f"all rays pass within {scale * centre_rms:.3g} of "
+                                f"{(c + scale * centre).tolist()}")
     if rel_sv[3] <= degenerate_tol:
-        if centre_rms <= 1e3 * degenerate_tol:
-            return FailedFit("pencil (single centre of projection)", n, condition,
-                             detail=f"all rays pass through {(c + scale * centre).tolist()}")
         if _coplanar(rel, d) <= 1e3 * degenerate_tol:
             return FailedFit("coplanar rays", n, condition,
                              detail="all rays lie in one plane (an EPI bundle)")
