@@ -309,31 +309,47 @@ def _square_axes(rotvec: np.ndarray, base: np.ndarray) -> np.ndarray:
 def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local: LocalXSlit,
            cube_size: float | None) -> CubeEstimate | FailedEstimate:
     """Non-central PnP of the square face from the exact rays of its edge points."""
-    pts, dirs, side_id = [], [], []
+    pts, dirs, side_id, pix = [], [], [], []
     for i, sp in enumerate(meas.sides_px):
-        p, d = rays(np.asarray(sp, dtype=np.float64))
+        sp = np.asarray(sp, dtype=np.float64)
+        p, d = rays(sp)
         ok = np.all(np.isfinite(p), axis=1)
-        pts.append(p[ok]), dirs.append(d[ok]), side_id.append(np.full(ok.sum(), i))
-    p, d, sid = np.concatenate(pts), np.concatenate(dirs), np.concatenate(side_id)
+        pts.append(p[ok]), dirs.append(d[ok]), side_id.append(np.full(ok.sum(), i)), pix.append(sp[ok])
+    p, d, sid, pix = np.concatenate(pts), np.concatenate(dirs), np.concatenate(side_id), np.concatenate(pix)
     # Base axes: vertical = along the local slit of the vertical sides, normal = toward the mirror.
     n0 = start.normal / np.linalg.norm(start.normal)
     vert_world = local.axes[0] if local.vertical == 0 else local.axes[1]
-    # The frame's vertical axis is the slit direction; orthogonalise against the normal.
     v0 = vert_world - (vert_world @ n0) * n0
     v0 /= np.linalg.norm(v0)
     h0 = np.cross(n0, v0)
     base = np.stack([v0, h0, n0], axis=1)  # columns
     c0 = start.front_face_center
     s0 = start.size if cube_size is None else cube_size
+    is_lr = sid < 2
+
+    def face_coords(origins, directions, c, axes):
+        n = axes[2]
+        t = ((c - origins) @ n) / (directions @ n)
+        q = origins + t[:, None] * directions - c
+        return q @ axes[0], q @ axes[1]
+
     # Side signs: where each side lies in the face's (a = vertical, b = horizontal) coordinates.
-    t0 = ((c0 - p) @ n0) / (d @ n0)
-    q0 = p + t0[:, None] * d - c0
-    a0, b0 = q0 @ v0, q0 @ h0
+    a0, b0 = face_coords(p, d, c0, base.T)
     sign = np.array([np.sign(np.mean(b0[sid == 0])), np.sign(np.mean(b0[sid == 1])),
                      np.sign(np.mean(a0[sid == 2])), np.sign(np.mean(a0[sid == 3]))])
     if np.any(sign == 0) or sign[0] == sign[1] or sign[2] == sign[3]:
         return FailedEstimate("exact", "the sides do not bound a quadrilateral around the face centre")
-    is_lr = sid < 2
+    # Residuals in pixels: metres per pixel across each side (u for left/right, v for top/bottom),
+    # measured on the starting plane. Pixel noise is isotropic; metric errors are not (the mirror
+    # compresses the image across its axis far more than along it).
+    step = np.where(is_lr[:, None], [[0.5, 0.0]], [[0.0, 0.5]])
+    p2, d2 = rays(pix + step)
+    a2, b2 = face_coords(p2, d2, c0, base.T)
+    mpp = np.abs(np.where(is_lr, b2 - b0, a2 - a0)) / 0.5
+    good = np.isfinite(mpp) & (mpp > 0)
+    if good.sum() < 8:
+        return FailedEstimate("exact", "too few edge points with a usable pixel scale")
+    p, d, sid, is_lr, mpp = p[good], d[good], sid[good], is_lr[good], mpp[good]
     scale = max(s0, 1e-6)
 
     def unpack(x):
@@ -344,17 +360,13 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
 
     def resid(x):
         rot, c, s = unpack(x)
-        axes = _square_axes(rot, base)  # rows: vertical, horizontal, normal
-        n = axes[2]
-        t = ((c - p) @ n) / (d @ n)
-        q = p + t[:, None] * d - c
-        a, b = q @ axes[0], q @ axes[1]
-        coord = np.where(is_lr, b, a)
-        return (coord - sign[sid] * s / 2.0) / scale
+        a, b = face_coords(p, d, c, _square_axes(rot, base))
+        return (np.where(is_lr, b, a) - sign[sid] * s / 2.0) / mpp
 
-    x0 = np.zeros(7)
-    sol = least_squares(resid, x0, method="trf", loss="soft_l1", f_scale=0.01, x_scale="jac",
-                        max_nfev=200)
+    # The front face is the cube face nearest to facing the mirror: within 54.7° of it.
+    lim = np.deg2rad(54.7)
+    sol = least_squares(resid, np.zeros(7), method="trf", loss="soft_l1", f_scale=1.0, x_scale="jac",
+                        bounds=([-lim] * 3 + [-np.inf] * 4, [lim] * 3 + [np.inf] * 4), max_nfev=300)
     if not sol.success and sol.status <= 0:
         return FailedEstimate("exact", f"least squares did not converge ({sol.message})")
     rot, c, s = unpack(sol.x)
@@ -386,7 +398,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     std = {"z": float(sd[4]), "size": float(sd[3]), "center": float(np.sqrt(np.sum(sd[:3] ** 2)))}
     return CubeEstimate(method="exact", center=f0[:3], size=float(s), z=float(f0[4]), front_face_center=c,
                         normal=normal, aspect_ratio=start.aspect_ratio, std=std,
-                        xslit=start.xslit, rms_residual=float(np.sqrt(np.mean(r ** 2))) * scale)
+                        xslit=start.xslit, rms_residual=float(np.sqrt(np.mean(r ** 2))))
 
 
 def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact",

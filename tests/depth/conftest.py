@@ -1,0 +1,65 @@
+"""Synthetic exact measurements of cube faces seen in a cylindrical mirror (no renderer involved).
+
+Edge points come from `raytrace.truth.reflection_pixels` of points along the true 3D edges, an
+exact reflection solve; face pixels are the pixel centres inside the imaged outline.
+"""
+
+import numpy as np
+import pytest
+from matplotlib.path import Path
+from scipy.spatial.transform import Rotation
+
+from depth.estimate import FaceMeasurement
+from raytrace.camera import PinholeCamera
+from raytrace.mirror import CylinderMirror
+from raytrace.scene import Cube
+from raytrace.truth import mirror_rays, reflection_pixels
+
+
+class MirrorRig:
+    def __init__(self, radius=0.1, distance=0.55, resolution=(800, 600), focal=1750.0):
+        self.camera = PinholeCamera.from_look_at(resolution, (focal, focal), None, (0, 0, distance),
+                                                 (0, 0, 0), (0, 1, 0))
+        self.mirror = CylinderMirror(radius, 0.49, (0, 0, 0), (0, 1, 0))
+
+    def rays(self, px):
+        r = mirror_rays(self.camera, self.mirror, np.asarray(px, dtype=np.float64))
+        return r.points, r.directions
+
+    def cube(self, distance, azimuth_deg, height=0.01, size=0.04, yaw_deg=0.0, roll_deg=0.0):
+        """A cube `distance` from the axis whose local +z face looks at the axis, then turned."""
+        a = np.deg2rad(azimuth_deg)
+        c = np.array([distance * np.sin(a), height, distance * np.cos(a)])
+        yaw = np.arctan2(-c[0], -c[2]) + np.deg2rad(yaw_deg)
+        rot = Rotation.from_euler("y", yaw).as_matrix() @ Rotation.from_euler("z", np.deg2rad(roll_deg)).as_matrix()
+        return Cube(size, c, rot)
+
+    def measure(self, cube, n=50, noise_px=0.0, seed=0):
+        """Exact (or noisy) FaceMeasurement of the cube's front face."""
+        _, corners, _ = cube.front_face(self.mirror)
+        t = np.linspace(0.08, 0.92, n)[:, None]
+        px = [reflection_pixels(self.camera, self.mirror, corners[i] * (1 - t) + corners[(i + 1) % 4] * t)[0]
+              for i in range(4)]
+        if noise_px:
+            rng = np.random.default_rng(seed)
+            px = [p + rng.normal(0, noise_px, p.shape) for p in px]
+        pairs = [(0, 2), (1, 3)]
+        du = [abs(px[i][:, 0].mean() - px[j][:, 0].mean()) for i, j in pairs]
+        lr, tb = pairs[int(np.argmax(du))], pairs[1 - int(np.argmax(du))]
+        left, right = sorted([px[lr[0]], px[lr[1]]], key=lambda p: p[:, 0].mean())
+        top, bottom = sorted([px[tb[0]], px[tb[1]]], key=lambda p: p[:, 1].mean())
+        outline = np.concatenate(px)
+        lo, hi = np.floor(outline.min(0)), np.ceil(outline.max(0))
+        gu, gv = np.meshgrid(np.arange(lo[0], hi[0] + 1), np.arange(lo[1], hi[1] + 1))
+        grid = np.column_stack([gu.ravel(), gv.ravel()])
+        inside = Path(outline).contains_points(grid)
+        corners_px = reflection_pixels(self.camera, self.mirror, corners)[0]
+        return FaceMeasurement((left, right, top, bottom), corners_px, grid[inside], max(noise_px, 0.0))
+
+    def depth(self, cube):
+        return float(self.mirror.distance_to_axis(cube.center[None])[0])
+
+
+@pytest.fixture(scope="session")
+def rig():
+    return MirrorRig()
