@@ -86,7 +86,7 @@ class XSlitFrame:
                 raise FitError("e_x: expected a direction not normal to the image plane")
             ex = ex / np.linalg.norm(ex)
         ey = np.cross(n, ex)
-        th1 = float(np.arctan2(d1 @ ey, d1 @ ex))
+        th1 = 0.0 if e_x is None else float(np.arctan2(d1 @ ey, d1 @ ex))
         if th1 <= -np.pi / 2:
             th1 += np.pi
         elif th1 > np.pi / 2:
