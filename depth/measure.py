@@ -288,10 +288,9 @@ def detect_cubes(
         (~inside).astype(np.uint8), np.ones((2 * edge_margin_px + 1,) * 2, np.uint8)
     ).astype(bool)
 
-    background = chroma[search]
-    med = float(np.median(background))
-    mad = float(np.median(np.abs(background - med))) * 1.4826
-    low = max(min_chroma, med + 8.0 * mad)
+    # Chroma noise of the background from the lower percentiles (cubes may fill half the mirror).
+    p5, p20 = np.percentile(chroma[search], [5, 20])
+    low = max(min_chroma, p20 + 10.0 * (p20 - p5))
     high = max(seed_chroma, 1.5 * low)
     weak = search & (chroma > low)
     n_lab, labels = cv2.connectedComponents(weak.astype(np.uint8), connectivity=8)
@@ -389,39 +388,31 @@ def _split_faces(value: np.ndarray, chroma: np.ndarray, blob: np.ndarray, min_co
 
     Faces are regions of nearly constant brightness separated by steps. Pixels where the
     smoothed brightness (sRGB value) changes faster than noise and slow shading ramps
-    allow are edge pixels; the remaining pixels fall into connected regions, the largest
-    of which is the front face. Regions are then grown back over the edge pixels that
-    resemble them (same brightness, at least half the face's chroma).
+    allow are edge pixels; the largest connected region of the remaining pixels is the
+    front face's core. It is grown back over the edge pixels that resemble it (same
+    brightness, at least half its chroma). What is left of the blob, less one-pixel
+    slivers, makes the other faces.
     """
     smooth = ndimage.gaussian_filter(value, 0.7)
     grad = np.hypot(ndimage.sobel(smooth, axis=0), ndimage.sobel(smooth, axis=1)) / 8.0
     noise = float(np.percentile(grad[blob], 30))
     flat = blob & (grad < max(0.25 * min_contrast, 5.0 * noise))
     n, lab, stats, _ = cv2.connectedComponentsWithStats(flat.astype(np.uint8), connectivity=4)
-    order = 1 + np.argsort(-stats[1:, 4]) if n > 1 else np.zeros(0, dtype=int)
-    if len(order) == 0:
+    if n <= 1:
         return _clean_region(blob), []
-    grown = []
-    claimed = np.zeros_like(blob)
-    for rank, j in enumerate(order):
-        if rank > 0 and stats[j, 4] < 6:
-            break
-        core = lab == j
-        level = float(np.median(value[core]))
-        spread = 1.4826 * float(np.median(np.abs(value[core] - level)))
-        tol = max(0.5 * min_contrast, 3.0 * spread)
-        similar = blob & ~claimed & (np.abs(value - level) < tol) & (
-            chroma >= 0.5 * float(np.median(chroma[core]))
-        )
-        region = core.copy()
-        for _ in range(3):
-            region |= cv2.dilate(region.astype(np.uint8), _CROSS).astype(bool) & similar
-        region = _clean_region(region) if rank == 0 else region
-        claimed |= region
-        grown.append(region)
-    front = grown[0]
-    sides = [m & ~front for m in grown[1:]]
-    return front, [m for m in sides if m.sum() >= 10]
+    core = lab == 1 + int(np.argmax(stats[1:, 4]))
+    level = float(np.median(value[core]))
+    spread = 1.4826 * float(np.median(np.abs(value[core] - level)))
+    tol = max(0.5 * min_contrast, 3.0 * spread)
+    similar = blob & (np.abs(value - level) < tol) & (chroma >= 0.5 * float(np.median(chroma[core])))
+    front = core.copy()
+    for _ in range(3):
+        front |= cv2.dilate(front.astype(np.uint8), _CROSS).astype(bool) & similar
+    front = _clean_region(front)
+    rest = cv2.morphologyEx((blob & ~front).astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(rest, connectivity=4)
+    sides = [lab == j for j in 1 + np.argsort(-stats[1:, 4]) if stats[j, 4] >= 10]
+    return front, sides
 
 
 _CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
@@ -648,30 +639,40 @@ def _side_samples(lines, quads, corners, margin, spacing):
     return pts, nrm
 
 
-def _edge_offsets(linear, points, normals, half_width, step=0.25):
+def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25):
     """Signed distance along the normal from each point to the edge, and the contrast.
 
-    The profile c(s), s ∈ [−L, L], is projected on the direction c_in − c_out
-    (c_in, c_out: the profile's ends, smoothed along the side), giving q(s) ≈ 1 inside and
-    0 outside; for a blurred step at s = e, ∫q ds = e + L.
+    The linear-RGB profile c(s), s ∈ [−L, L], is projected on the direction
+    d = c_in − c_out (c_in, c_out: the profile's ends, median-filtered along the side),
+    giving q(s) ≈ 1 inside and 0 outside; for a blurred (area-sampled) step at s = e,
+    ∫q ds = e + L. Colours are first reduced to their chroma (the grey component is
+    removed), so that a grey background's texture does not move the edge; where the
+    chroma contrast is below `min_contrast` (two faces of a pale cube) the full colour
+    is used.
     """
     s = np.arange(-half_width, half_width + step / 2, step)
     u = points[:, 0:1] + s[None, :] * normals[:, 0:1]
     v = points[:, 1:2] + s[None, :] * normals[:, 1:2]
     prof = _bilinear(linear, u, v)  # (N, K, 3)
-    # Levels at exactly ±L: nearer samples mix in the edge through the bilinear footprint.
-    c_in = prof[:, 0]
-    c_out = prof[:, -1]
-    if len(points) >= 5:
-        # median along the side: less noise, yet keeps the steps of a textured background
-        c_in = ndimage.median_filter(c_in, size=(5, 1), mode="nearest")
-        c_out = ndimage.median_filter(c_out, size=(5, 1), mode="nearest")
-    d = c_in - c_out
-    dd = np.sum(d * d, axis=1)
-    safe = np.where(dd > 0, dd, 1.0)
-    q = np.einsum("nkc,nc->nk", prof - c_out[:, None, :], d) / safe[:, None]
+    chroma = prof - prof.mean(axis=2, keepdims=True)
+    qs, contrasts = [], []
+    for p in (chroma, prof):
+        # Levels at exactly ±L: nearer samples mix in the edge through the bilinear footprint.
+        c_in, c_out = p[:, 0], p[:, -1]
+        if len(points) >= 5:
+            # median along the side: less noise, yet keeps the steps of a textured background
+            c_in = ndimage.median_filter(c_in, size=(5, 1), mode="nearest")
+            c_out = ndimage.median_filter(c_out, size=(5, 1), mode="nearest")
+        d = c_in - c_out
+        dd = np.sum(d * d, axis=1)
+        safe = np.where(dd > 0, dd, 1.0)
+        qs.append(np.einsum("nkc,nc->nk", p - c_out[:, None, :], d) / safe[:, None])
+        contrasts.append(np.sqrt(dd))
+    use_chroma = contrasts[0] >= min_contrast
+    q = np.where(use_chroma[:, None], qs[0], qs[1])
+    contrast = np.where(use_chroma, contrasts[0], contrasts[1])
     area = np.sum((q[:, 1:] + q[:, :-1]) * 0.5, axis=1) * step
-    return area - half_width, np.sqrt(dd)
+    return area - half_width, contrast
 
 
 def _refine(linear, model, half_width, margin, min_contrast, min_points, spacing):
@@ -688,7 +689,7 @@ def _refine(linear, model, half_width, margin, min_contrast, min_points, spacing
         p, n = p[inside], n[inside]
         if len(p) < min_points:
             return FailedMeasurement(f"{name} side: {len(p)} edge points, need {min_points}")
-        e, c = _edge_offsets(linear, p, n, half_width)
+        e, c = _edge_offsets(linear, p, n, half_width, min_contrast)
         good = (c >= min_contrast) & (np.abs(e) <= half_width - 0.5)
         if good.sum() < min_points:
             return FailedMeasurement(

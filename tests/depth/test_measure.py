@@ -1,0 +1,366 @@
+"""Tests of depth.measure on synthetic mirror images drawn without our renderer.
+
+Each fake cube is a front face with straight left/right sides and quadratic top/bottom
+sides through known corners, flanked by a darker side-face strip (and optionally a
+brighter top strip), painted at 8× resolution in linear RGB, box-downsampled (the
+anti-aliasing of a camera or renderer), sRGB-encoded and quantised to 8 bits.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from depth.errors import DepthError
+from depth.measure import (
+    CubeDetection,
+    FaceOutline,
+    FailedMeasurement,
+    detect_cubes,
+    face_outline,
+    srgb_to_linear,
+)
+
+# --------------------------------------------------------------------- synthetic images
+
+
+def linear_to_srgb(x):
+    x = np.clip(x, 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
+
+
+@dataclass
+class FakeCube:
+    """A front face: straight left/right sides, quadratic top/bottom through its corners."""
+
+    tl: tuple
+    tr: tuple
+    br: tuple
+    bl: tuple
+    top_sag: float = 0.0  # px; > 0 bends the middle of the top side downward
+    bottom_sag: float = 0.0
+    albedo: tuple = (0.8, 0.1, 0.1)
+    front_shade: float = 0.7
+    side_shade: float = 0.3
+    top_shade: float = 0.95
+    side: str | None = "left"  # a side-face strip on this side of the front face
+    side_width: float = 4.0
+    top_height: float = 0.0  # a top-face strip above the top side
+
+    def corners(self):
+        return np.array([self.tl, self.tr, self.br, self.bl], dtype=np.float64)
+
+    @staticmethod
+    def _line(p, q, v):
+        return p[0] + (v - p[1]) * (q[0] - p[0]) / (q[1] - p[1])
+
+    @staticmethod
+    def _curve(p, q, sag, u):
+        t = (u - p[0]) / (q[0] - p[0])
+        return p[1] + t * (q[1] - p[1]) + sag * 4.0 * t * (1.0 - t)
+
+    def left(self, v):
+        return self._line(self.tl, self.bl, v)
+
+    def right(self, v):
+        return self._line(self.tr, self.br, v)
+
+    def top(self, u):
+        return self._curve(self.tl, self.tr, self.top_sag, u)
+
+    def bottom(self, u):
+        return self._curve(self.bl, self.br, self.bottom_sag, u)
+
+    def face(self, u, v):
+        return (u > self.left(v)) & (u < self.right(v)) & (v > self.top(u)) & (v < self.bottom(u))
+
+    def side_strip(self, u, v):
+        rows = (v > self.top(u) + 1.0) & (v < self.bottom(u) - 1.0)
+        if self.side == "left":
+            lu = self.left(v)
+            return rows & (u > lu - self.side_width) & (u <= lu)
+        if self.side == "right":
+            ru = self.right(v)
+            return rows & (u >= ru) & (u < ru + self.side_width)
+        return np.zeros_like(rows)
+
+    def paint(self, img, u, v):
+        alb = np.asarray(self.albedo)
+        img[self.side_strip(u, v)] = alb * self.side_shade
+        if self.top_height > 0:
+            tv = self.top(u)
+            m = (u > self.left(v)) & (u < self.right(v)) & (v > tv - self.top_height) & (v <= tv)
+            img[m] = alb * self.top_shade
+        img[self.face(u, v)] = alb * self.front_shade
+
+
+def make_image(shape, cubes, mirror=None, background="checker", noise=0.0, seed=0,
+               supersample=8, decoy=True):
+    """sRGB image (H, W, 3) float64 in [0, 1] and mirror mask (H, W) bool.
+
+    mirror : (u0, v0, u1, v1); pixels whose centre lies in this rectangle see the mirror.
+    decoy : paint a green patch seen directly, just outside the mirror (must be ignored).
+    """
+    h, w = shape
+    ss = supersample
+    if mirror is None:
+        mirror = (w * 0.12, h * 0.05, w * 0.88, h * 0.95)
+    mu0, mv0, mu1, mv1 = mirror
+    u, v = np.meshgrid((np.arange(w * ss) + 0.5) / ss - 0.5, (np.arange(h * ss) + 0.5) / ss - 0.5)
+    img = np.empty((h * ss, w * ss, 3))
+    if background == "checker":  # rotated, so that no checker line runs along a cube side
+        ca, sa, cell = np.cos(0.5), np.sin(0.5), 7.3
+        k = (np.floor((ca * u + sa * v + 0.31) / cell) + np.floor((ca * v - sa * u + 0.17) / cell)) % 2
+        img[:] = np.where(k[..., None] > 0, 0.45, 0.22)
+    else:
+        img[:] = 0.35
+    for c in cubes:
+        c.paint(img, u, v)
+    outside = ~((u >= mu0) & (u <= mu1) & (v >= mv0) & (v <= mv1))
+    img[outside] = 0.08
+    if decoy:
+        img[outside & (np.abs(u - mu0 + 6) < 4) & (np.abs(v - h / 2) < 15)] = (0.1, 0.7, 0.1)
+    srgb = linear_to_srgb(img.reshape(h, ss, w, ss, 3).mean(axis=(1, 3)))
+    if noise > 0:
+        srgb = srgb + np.random.default_rng(seed).normal(0.0, noise, srgb.shape)
+    srgb = np.round(np.clip(srgb, 0.0, 1.0) * 255.0) / 255.0  # an 8-bit PNG / 255
+    pu, pv = np.meshgrid(np.arange(w), np.arange(h))
+    mask = (pu >= mu0) & (pu <= mu1) & (pv >= mv0) & (pv <= mv1)
+    return srgb, mask
+
+
+COLOURS = {
+    "red": (0.8, 0.08, 0.08),
+    "green": (0.08, 0.6, 0.08),
+    "blue": (0.08, 0.08, 0.8),
+    "yellow": (0.75, 0.7, 0.05),
+    "magenta": (0.7, 0.05, 0.7),
+}
+
+
+def three_cubes():
+    return [
+        FakeCube((50.3, 30.6), (71.8, 31.4), (72.5, 140.2), (51.1, 139.1), top_sag=1.5,
+                 bottom_sag=2.2, side="left", side_width=4.5, albedo=COLOURS["red"]),
+        FakeCube((100.7, 50.2), (118.2, 50.9), (118.9, 160.4), (101.2, 159.6), top_sag=-1.0,
+                 bottom_sag=1.2, albedo=COLOURS["green"], side="right", side_width=3.5),
+        FakeCube((150.2, 40.5), (190.6, 39.8), (191.1, 170.3), (150.9, 171.0), top_sag=2.0,
+                 bottom_sag=3.0, albedo=COLOURS["blue"], side="left", side_width=5, top_height=4),
+    ]
+
+
+def random_cube(rng, u_centre, albedo):
+    """A tall narrow face (14–32 px × 90–130 px) with random tilt, sags and side strip.
+
+    Its footprint stays within u_centre ± 27 px."""
+    width, height = rng.uniform(14, 32), rng.uniform(90, 130)
+    u0, v0 = u_centre - width / 2 + rng.uniform(-0.5, 0.5), rng.uniform(25, 40)
+    tilt = rng.uniform(-0.03, 0.03) * height  # left/right sides lean by this many pixels
+    dv = rng.uniform(-0.04, 0.04) * width  # top/bottom slope
+    return FakeCube(
+        (u0, v0), (u0 + width, v0 + dv), (u0 + width + tilt, v0 + height + dv),
+        (u0 + tilt + rng.uniform(-0.3, 0.3), v0 + height + rng.uniform(-0.5, 0.5)),
+        top_sag=rng.uniform(-2.5, 2.5), bottom_sag=rng.uniform(-2.5, 2.5), albedo=albedo,
+        front_shade=rng.uniform(0.5, 0.9), side_shade=rng.uniform(0.15, 0.35),
+        side=str(rng.choice(["left", "right"])), side_width=rng.uniform(3.5, 7.0),
+    )
+
+
+def match(detections, cubes):
+    """For each cube, the detection whose blob contains the cube's face centre."""
+    out = []
+    for c in cubes:
+        uc, vc = c.corners().mean(axis=0)
+        hits = [d for d in detections if d.mask[int(round(vc)), int(round(uc))]]
+        assert len(hits) == 1, f"cube at ({uc:.0f}, {vc:.0f}) matched {len(hits)} detections"
+        out.append(hits[0])
+    return out
+
+
+def pixel_truth(shape, cube, which):
+    """Pixels of a cube's region, by pixel centre."""
+    u, v = np.meshgrid(np.arange(shape[1], dtype=float), np.arange(shape[0], dtype=float))
+    return cube.face(u, v) if which == "face" else cube.side_strip(u, v)
+
+
+# ---------------------------------------------------------------------------- detection
+
+
+def test_detects_each_cube_once_and_nothing_else():
+    cubes = three_cubes()
+    image, mirror = make_image((200, 240), cubes)
+    detections = detect_cubes(image, mirror)
+    assert len(detections) == len(cubes)  # the green decoy outside the mirror is ignored
+    for d, c in zip(match(detections, cubes), cubes):
+        assert isinstance(d, CubeDetection)
+        assert d.reason is None and d.usable
+        assert not d.cut_by_mirror_edge and not d.occluded
+        # colour: the front face's sRGB colour, dominated by the albedo's strongest channel
+        assert np.argmax(d.color) == np.argmax(c.albedo)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_recall_and_no_false_positives_on_random_colourful_scenes(seed):
+    rng = np.random.default_rng(seed)
+    names = rng.permutation(list(COLOURS))[:4]
+    cubes = [random_cube(rng, 70 + 55 * i, COLOURS[n]) for i, n in enumerate(names)]
+    image, mirror = make_image((190, 310), cubes, noise=2 / 255, seed=seed,
+                               background=["checker", "grey"][seed % 2])
+    detections = detect_cubes(image, mirror)
+    assert len(detections) == len(cubes)
+    for d in match(detections, cubes):
+        assert d.usable, d.reason
+
+
+def test_front_face_is_separated_from_side_and_top_strips():
+    cubes = three_cubes()
+    image, mirror = make_image((200, 240), cubes)
+    for d, c in zip(match(detect_cubes(image, mirror), cubes), cubes):
+        face = pixel_truth(image.shape[:2], c, "face")
+        strip = pixel_truth(image.shape[:2], c, "strip")
+        iou = (d.front_face_mask & face).sum() / (d.front_face_mask | face).sum()
+        assert iou > 0.9
+        assert (d.front_face_mask & strip).sum() <= 0.1 * strip.sum()
+        assert not (d.front_face_mask & ~d.mask).any()
+        assert any((m & strip).sum() > 0.5 * strip.sum() for m in d.side_face_masks)
+
+
+def test_blob_touching_the_mirror_edge_is_refused():
+    inside = FakeCube((60.3, 70.2), (80.6, 70.9), (81.0, 175.0), (60.8, 174.5), side="right",
+                      albedo=COLOURS["yellow"])
+    # the mirror's top edge at v = 60 cuts this cube's face
+    cut = FakeCube((140.2, 30.6), (160.5, 31.0), (161.0, 150.2), (140.6, 150.0), side="left",
+                   albedo=COLOURS["magenta"])
+    image, mirror = make_image((200, 240), [inside, cut], mirror=(25, 60, 215, 190))
+    ok, refused = match(detect_cubes(image, mirror), [inside, cut])
+    assert ok.usable  # `inside` is 8 px from the mirror's edges
+    assert refused.cut_by_mirror_edge and not refused.occluded
+    assert refused.reason is not None and "edge of the mirror" in refused.reason
+
+
+def test_overlapping_cubes_of_different_colours_are_split_and_marked_occluded():
+    front = FakeCube((90.2, 40.3), (112.5, 41.0), (113.1, 150.5), (90.7, 150.0), side="left",
+                     albedo=COLOURS["red"])
+    behind = FakeCube((108.4, 60.2), (134.9, 60.6), (135.4, 170.3), (108.9, 169.8), side="right",
+                      albedo=COLOURS["blue"])
+    lone = FakeCube((170.1, 50.0), (190.3, 50.4), (190.9, 160.0), (170.4, 160.2), side="left",
+                    albedo=COLOURS["green"])
+    image, mirror = make_image((200, 240), [behind, front, lone])  # front painted last
+    detections = detect_cubes(image, mirror)
+    assert len(detections) == 3
+    d_behind, d_front, d_lone = match(detections, [behind, front, lone])
+    for d in (d_behind, d_front):
+        assert d.occluded and not d.usable
+        assert "another cube" in d.reason
+    assert d_lone.usable
+    assert np.argmax(d_front.color) == 0 and np.argmax(d_behind.color) == 2
+
+
+def test_empty_mirror_gives_no_detection():
+    image, mirror = make_image((120, 160), [], noise=2 / 255)
+    assert detect_cubes(image, mirror) == []
+
+
+# ------------------------------------------------------------------------------ outline
+
+
+def corner_errors(outline, cube):
+    return np.linalg.norm(outline.corners_px - cube.corners(), axis=1)
+
+
+@pytest.mark.parametrize("background", ["checker", "grey"])
+def test_corners_without_noise_within_a_tenth_of_a_pixel(background):
+    cubes = three_cubes()
+    image, mirror = make_image((200, 240), cubes, background=background)
+    for d, c in zip(match(detect_cubes(image, mirror), cubes), cubes):
+        outline = face_outline(image, d.front_face_mask)
+        assert isinstance(outline, FaceOutline) and outline
+        assert corner_errors(outline, c).max() <= 0.1
+
+
+def test_edge_points_lie_on_the_true_sides_and_are_many():
+    cubes = three_cubes()
+    image, mirror = make_image((200, 240), cubes)
+    for d, c in zip(match(detect_cubes(image, mirror), cubes), cubes):
+        o = face_outline(image, d.front_face_mask)
+        left, right, top, bottom = o.sides
+        height = c.bl[1] - c.tl[1]
+        assert len(left) > 0.8 * height and len(right) > 0.8 * height
+        assert len(top) > 0.5 * (c.tr[0] - c.tl[0] - 6)
+        # horizontal distance to a near-vertical line, vertical distance to a flat curve
+        dev = [left[:, 0] - c.left(left[:, 1]), right[:, 0] - c.right(right[:, 1]),
+               top[:, 1] - c.top(top[:, 0]), bottom[:, 1] - c.bottom(bottom[:, 0])]
+        for name, e in zip(("left", "right", "top", "bottom"), dev):
+            # the 8× supersampled painting itself is a staircase of 1/8 px steps
+            assert np.sqrt(np.mean(e**2)) < 0.06, name
+            assert np.abs(e).max() < 0.15, name
+        # corners are ordered TL, TR, BR, BL; every side point lies between its corners
+        tl, tr, br, bl = o.corners_px
+        assert np.all(left[:, 1] > tl[1]) and np.all(left[:, 1] < bl[1])
+        assert np.all(top[:, 0] > tl[0]) and np.all(top[:, 0] < tr[0])
+        assert o.edge_noise_px < 0.1
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_corners_with_noise_within_three_tenths_of_a_pixel(seed):
+    cubes = three_cubes()
+    image, mirror = make_image((200, 240), cubes, noise=2 / 255, seed=seed)
+    for d, c in zip(match(detect_cubes(image, mirror), cubes), cubes):
+        o = face_outline(image, d.front_face_mask)
+        assert o, getattr(o, "reason", "")
+        assert corner_errors(o, c).max() <= 0.3
+        assert 0.0 < o.edge_noise_px < 0.3
+
+
+@pytest.mark.parametrize("seed", [10, 11, 12])
+def test_random_faces_corners_without_noise(seed):
+    rng = np.random.default_rng(seed)
+    cubes = [random_cube(rng, 65 + 55 * i, list(COLOURS.values())[(seed + i) % 5]) for i in range(3)]
+    image, mirror = make_image((180, 240), cubes, background="checker")
+    for d, c in zip(match(detect_cubes(image, mirror), cubes), cubes):
+        o = face_outline(image, d.front_face_mask)
+        assert o, getattr(o, "reason", "")
+        assert corner_errors(o, c).max() <= 0.1
+
+
+def test_outline_fails_with_a_reason_on_a_featureless_face():
+    image = np.full((80, 60, 3), 0.5)
+    mask = np.zeros((80, 60), dtype=bool)
+    mask[10:70, 20:40] = True
+    result = face_outline(image, mask)
+    assert isinstance(result, FailedMeasurement) and not result
+    assert "contrast" in result.reason
+    tiny = np.zeros_like(mask)
+    tiny[30:32, 30:32] = True
+    small = face_outline(image, tiny)
+    assert not small and "too small" in small.reason
+
+
+def test_srgb_round_trip():
+    x = np.linspace(0.0, 1.0, 101)
+    assert np.allclose(srgb_to_linear(linear_to_srgb(x)), x, atol=1e-12)
+    assert srgb_to_linear(np.array(0.5)) == pytest.approx(0.21404, abs=1e-5)  # IEC 61966-2-1
+
+
+# ----------------------------------------------------------------------------- bad input
+
+
+def test_bad_inputs_raise_depth_errors_naming_the_argument():
+    image, mirror = make_image((60, 80), [])
+    with pytest.raises(DepthError, match=r"image: expected float64.*uint8"):
+        detect_cubes((image * 255).astype(np.uint8), mirror)
+    with pytest.raises(DepthError, match=r"image: expected shape \(H, W, 3\)"):
+        detect_cubes(image[..., 0], mirror)
+    with pytest.raises(DepthError, match=r"image: expected values in \[0, 1\]"):
+        detect_cubes(image * 255.0, mirror)
+    with pytest.raises(DepthError, match=r"mirror_mask: expected shape"):
+        detect_cubes(image, mirror[:-1])
+    with pytest.raises(DepthError, match=r"mirror_mask: expected dtype bool"):
+        detect_cubes(image, mirror.astype(np.uint8))
+    with pytest.raises(DepthError, match=r"mirror_mask: no pixel"):
+        detect_cubes(image, np.zeros_like(mirror))
+    with pytest.raises(DepthError, match=r"face_mask: expected shape"):
+        face_outline(image, mirror.T)
+    with pytest.raises(DepthError, match=r"image: expected finite"):
+        face_outline(np.full_like(image, np.nan), mirror)
+    assert issubclass(DepthError, ValueError)
