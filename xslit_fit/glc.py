@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validate import as_array, as_rays, as_unit, as_vector, as_weights
+from ._validate import as_rays, as_unit, as_vector, as_weights
 from .errors import FitError
 from .fit import _linear_step
 from .plucker import Line, cross
