@@ -94,6 +94,44 @@ def _cmd_simulate(args) -> int:
     return 0
 
 
+def _cmd_reconstruct(args) -> int:
+    from pathlib import Path
+    from rich.console import Console
+    from catadioptric import reconstruct as rc
+    json_path = Path(args.output) if args.output else Path(args.image).with_suffix(".result.json")
+    if json_path.suffix.lower() != ".json":
+        raise CatadioptricError(f"{json_path}: -o: expected an output file name ending in .json")
+    if args.overlay and Path(args.overlay).suffix.lower() != ".png":
+        raise CatadioptricError(f"{args.overlay}: --overlay: expected an output file name ending in .png")
+    with Progress("measuring cubes") as bar:
+        setup, setup_path, image, rec = rc.run_reconstruction(args.image, args.setup, args.method,
+                                                              args.cube_size, progress=bar)
+    result = rc.result_dict(args.image, setup_path, rec)
+    truth = _truth_beside(args.image)
+    overlay = rc.draw_overlay(image, rec) if args.overlay else None
+    written = rc.write_outputs(result, json_path, args.overlay, overlay)
+    rc.print_table(Console(width=None if sys.stdout.isatty() else 120), result, truth)
+    if not rec.cubes:
+        print("no cube found" if not rec.refused else "no cube could be estimated")
+    for p in written:
+        print(p)
+    return 0
+
+
+def _truth_beside(image_path):
+    """IMAGE.truth.json from `simulate`, when it lies beside the image (for the error columns)."""
+    import json
+    from pathlib import Path
+    p = Path(image_path).with_suffix("")
+    p = Path(f"{p}.truth.json")
+    if not p.is_file():
+        return None
+    try:
+        return json.loads(p.read_text())
+    except (OSError, ValueError):
+        return None
+
+
 def _cmd_demo(args) -> int:
     from catadioptric import demo
     return demo.run(args)
@@ -132,10 +170,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("image", metavar="IMAGE.png")
     r.add_argument("--setup", metavar="SETUP.toml")
     r.add_argument("--cube-size", type=float, metavar="S")
-    r.add_argument("--method", default=None)
+    r.add_argument("--method", default=None,
+                   help="exact (default), ddar, dds or shape_prior")
     r.add_argument("-o", "--output", metavar="OUT.json")
     r.add_argument("--overlay", metavar="OUT.png")
-    r.set_defaults(func=_not_available("reconstruct"))
+    r.set_defaults(func=_cmd_reconstruct)
 
     rp = sub.add_parser("report", help="an HTML report with 3D views, plots and annotated images")
     rp.add_argument("input", metavar="IMAGE.png|RESULT.json")

@@ -34,6 +34,7 @@ from depth.errors import DegenerateGeometryError, DepthError
 from depth.xslit import XSlit
 
 __all__ = ["METHODS", "FaceMeasurement", "CubeEstimate", "FailedEstimate", "estimate_face",
+           "estimate_faces_shape_prior",
            "LocalXSlit", "local_xslit"]
 
 METHODS = ("ddar", "dds", "exact")
@@ -185,25 +186,44 @@ def _extents(corners: np.ndarray, vertical: int) -> tuple[float, float]:
     return ext_v, ext_h
 
 
-def _ddar(local: LocalXSlit, kap: dict, cube_size: float | None) -> CubeEstimate:
-    xs = local.xslit
-    # Which κ axis do the vertical (left/right) sides run along?
-    vertical = int(np.argmax(np.abs(kap["dirs"][:2]).mean(axis=0)))
+def _kappa_extents(kap: dict, vertical: int) -> tuple[float, float, float, float]:
+    """Extents (κ along v1, κ along v2) of the face and their σ from the side-line residuals."""
     ext_v, ext_h = _extents(kap["corners"], vertical)
-    k1, k2 = (ext_v, ext_h) if vertical == 0 else (ext_h, ext_v)  # extents along v1, v2
-    r_i = k1 / k2
-    # σ of each extent from the side-line residuals (two sides, each offset σ ≈ rms/√M).
+    k1, k2 = (ext_v, ext_h) if vertical == 0 else (ext_h, ext_v)
+    # σ of each extent: two sides, each offset σ ≈ rms/√M.
     side_sigma = kap["rms"] / np.sqrt(np.maximum(kap["counts"], 1))
     sig_v = np.hypot(side_sigma[0], side_sigma[1])
     sig_h = np.hypot(side_sigma[2], side_sigma[3])
     s1, s2 = (sig_v, sig_h) if vertical == 0 else (sig_h, sig_v)
+    return k1, k2, float(s1), float(s2)
+
+
+def _place(local: LocalXSlit, kap: dict, z: float, size: float, method: str, r_i: float, std: dict
+           ) -> CubeEstimate:
+    """The cube whose front face is the measured quadrilateral at frame depth z, with edge `size`."""
+    xs = local.xslit
+    k_center = kap["corners"].mean(axis=0)
+    face_center_f = xs.back_project(xs.from_kappa(k_center[None]), z)[0]
+    face_center = local.to_world(face_center_f[None])[0]
+    e_z = local.axes[2]
+    info = _xslit_info(local)
+    k1, k2, s1, s2 = _kappa_extents(kap, local.vertical)
+    info.update(kappa_extents=[k1, k2], kappa_extents_std=[s1, s2])
+    return CubeEstimate(method=method, center=face_center + e_z * size / 2.0, size=float(size), z=float(z),
+                        front_face_center=face_center, normal=-e_z, aspect_ratio=float(r_i), std=std,
+                        xslit=info, rms_residual=float(np.mean(kap["rms"])))
+
+
+def _ddar(local: LocalXSlit, kap: dict, cube_size: float | None) -> CubeEstimate:
+    xs = local.xslit
+    k1, k2, s1, s2 = _kappa_extents(kap, local.vertical)
+    r_i = k1 / k2
     if cube_size is None:
         z = float(ddar.depth_from_aspect_ratio(r_i, xs.z1, xs.z2, 1.0))
         sigma_r = r_i * np.hypot(s1 / k1, s2 / k2)
         z_std = float(ddar.depth_std_from_aspect_ratio(r_i, sigma_r, xs.z1, xs.z2, 1.0))
         su, sv = xs.kappa_scales(z)
-        size_1, size_2 = k1 / su, k2 / sv
-        size = 0.5 * (size_1 + size_2)
+        size = 0.5 * (k1 / su + k2 / sv)
         # size = κ/s(z): its σ follows z's and the extents'.
         dz = 1e-6 * max(abs(z), 1e-9)
         su2, sv2 = xs.kappa_scales(z + dz)
@@ -215,27 +235,16 @@ def _ddar(local: LocalXSlit, kap: dict, cube_size: float | None) -> CubeEstimate
 
         def resid(zz):
             su, sv = xs.kappa_scales(zz[0])
-            return [(su * size - k1) / s1 if s1 > 0 else su * size - k1,
-                    (sv * size - k2) / s2 if s2 > 0 else sv * size - k2]
+            return [(su * size - k1) / max(s1, 1e-12), (sv * size - k2) / max(s2, 1e-12)]
         z0 = float(ddar.depth_from_aspect_ratio(r_i, xs.z1, xs.z2, 1.0, strict=False))
         if not np.isfinite(z0):
-            z0 = 1.0 * max(abs(xs.z1), abs(xs.z2))
+            z0 = max(abs(xs.z1), abs(xs.z2))
         sol = least_squares(resid, [z0], bounds=([ddar.near_depth(xs.z1, xs.z2) + 1e-9], [np.inf]))
         z = float(sol.x[0])
-        jt = sol.jac
-        z_std = float(np.sqrt(1.0 / max((jt.T @ jt)[0, 0], 1e-300)))
+        z_std = float(np.sqrt(1.0 / max((sol.jac.T @ sol.jac)[0, 0], 1e-300)))
         size_std = 0.0
-    # Face centre: the κ centre of the quadrilateral, back-projected at depth z.
-    k_center = kap["corners"].mean(axis=0)
-    uv = xs.from_kappa(k_center[None])
-    face_center_f = xs.back_project(uv, z)[0]
-    face_center = local.to_world(face_center_f[None])[0]
-    e_z = local.axes[2]
-    center = face_center + e_z * size / 2.0
     std = {"z": z_std, "size": size_std, "center": float(np.hypot(z_std, size_std / 2.0))}
-    return CubeEstimate(method="ddar", center=center, size=float(size), z=z, front_face_center=face_center,
-                        normal=-e_z, aspect_ratio=float(r_i), std=std,
-                        xslit=_xslit_info(local), rms_residual=float(np.mean(kap["rms"])))
+    return _place(local, kap, z, size, "ddar", r_i, std)
 
 
 def _xslit_info(local: LocalXSlit) -> dict:
@@ -401,6 +410,51 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
                         xslit=start.xslit, rms_residual=float(np.sqrt(np.mean(r ** 2))))
 
 
+def _prepare(rays: RayFunction, meas: FaceMeasurement, method: str, seed: int):
+    """The local XSlit and the face's κ outline, or a FailedEstimate."""
+    local = local_xslit(rays, meas.face_px, seed=seed)
+    if not local:
+        return FailedEstimate(method, f"local XSlit fit failed: {local.reason}"), None
+    try:
+        kap = _face_in_kappa(local, rays, meas.sides_px)
+    except (DepthError, np.linalg.LinAlgError) as exc:
+        return FailedEstimate(method, f"face outline in the XSlit frame: {exc}"), None
+    vertical = int(np.argmax(np.abs(kap["dirs"][:2]).mean(axis=0)))
+    return LocalXSlit(local.origin, local.axes, local.xslit, local.rms_distance, local.slits, vertical), kap
+
+
+def estimate_faces_shape_prior(rays: RayFunction, measurements, seed: int = 0) -> list:
+    """K ≥ 2 identical cubes of unknown size, solved jointly (Eqn. smshapeprior).
+
+    Each face is measured in its own local XSlit (z1^j, z2^j); the 2K equations are solved in
+    least squares for every depth and the common size. Returns one estimate per measurement.
+    """
+    from depth import priors
+    prepared = [_prepare(rays, m, "shape_prior", seed) for m in measurements]
+    ok = [i for i, (loc, _) in enumerate(prepared) if loc]
+    out: list = [loc if not loc else None for loc, _ in prepared]
+    if len(ok) < 2:
+        for i in ok:
+            out[i] = FailedEstimate("shape_prior", "the shape prior needs at least 2 measurable cubes")
+        return out
+    ext = np.array([_kappa_extents(prepared[i][1], prepared[i][0].vertical) for i in ok])
+    z1 = np.array([prepared[i][0].xslit.z1 for i in ok])
+    z2 = np.array([prepared[i][0].xslit.z2 for i in ok])
+    try:
+        sol = priors.shape_prior(ext[:, :2], z1, z2, sigma=ext[:, 2:])
+    except DepthError as exc:
+        for i in ok:
+            out[i] = FailedEstimate("shape_prior", str(exc))
+        return out
+    size = 0.5 * (sol.kappa_x + sol.kappa_y)
+    size_std = 0.5 * float(np.hypot(sol.kappa_x_std, sol.kappa_y_std))
+    for j, i in enumerate(ok):
+        local, kap = prepared[i]
+        std = {"z": float(sol.depth_std[j]), "size": size_std, "center": float(np.hypot(sol.depth_std[j], size_std / 2))}
+        out[i] = _place(local, kap, float(sol.depths[j]), size, "shape_prior", ext[j, 0] / ext[j, 1], std)
+    return out
+
+
 def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact",
                   cube_size: float | None = None, seed: int = 0):
     """Estimate one cube from its measured front face; returns `CubeEstimate` or `FailedEstimate`.
@@ -418,15 +472,9 @@ def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact
         raise DepthError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
     if cube_size is not None and not (np.isfinite(cube_size) and cube_size > 0):
         raise DepthError(f"cube_size: expected a positive edge length in metres, got {cube_size}")
-    local = local_xslit(rays, meas.face_px, seed=seed)
+    local, kap = _prepare(rays, meas, method, seed)
     if not local:
-        return FailedEstimate(method, f"local XSlit fit failed: {local.reason}")
-    try:
-        kap = _face_in_kappa(local, rays, meas.sides_px)
-    except (DepthError, np.linalg.LinAlgError) as exc:
-        return FailedEstimate(method, f"face outline in the XSlit frame: {exc}")
-    vertical = int(np.argmax(np.abs(kap["dirs"][:2]).mean(axis=0)))
-    local = LocalXSlit(local.origin, local.axes, local.xslit, local.rms_distance, local.slits, vertical)
+        return local
     if method == "dds":
         return _dds(local, kap)
     try:

@@ -78,3 +78,15 @@ def test_bad_arguments(rig):
         estimate_face(rig.rays, meas, method="magic")
     with pytest.raises(DepthError, match="cube_size"):
         estimate_face(rig.rays, meas, cube_size=-1.0)
+
+
+def test_shape_prior_recovers_common_size_of_identical_cubes(rig):
+    from depth.estimate import estimate_faces_shape_prior
+    cubes = [rig.cube(0.35, -30.0, size=0.05), rig.cube(0.6, 5.0, size=0.05), rig.cube(0.85, 25.0, size=0.05)]
+    ests = estimate_faces_shape_prior(rig.rays, [rig.measure(c) for c in cubes])
+    for est, cube in zip(ests, cubes):
+        assert est and est.method == "shape_prior"
+        assert est.size == pytest.approx(0.05, rel=0.02)
+        assert centre_error(rig, est, cube) < 0.02
+    single = estimate_faces_shape_prior(rig.rays, [rig.measure(cubes[0])])
+    assert not single[0] and "at least 2" in single[0].reason

@@ -1,0 +1,150 @@
+"""`catadioptric reconstruct`: `read_image`, `run_reconstruction`, `result_dict`, `draw_overlay`, `print_table`.
+
+Reads a mirror photograph and its setup, runs `depth.reconstruct`, prints a table and writes the
+JSON result of SETUP_FORMAT.md (and optionally an annotated overlay image), all or nothing.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from catadioptric.errors import CatadioptricError
+from catadioptric.outputs import OutputSet
+from catadioptric.setup import Setup, load_setup
+
+__all__ = ["read_image", "default_setup_path", "run_reconstruction", "result_dict", "draw_overlay",
+           "print_table", "write_outputs"]
+
+
+def read_image(path) -> np.ndarray:
+    """An 8-bit RGB image file as (H, W, 3) uint8; one-line errors for anything else."""
+    path = Path(path)
+    if not path.exists():
+        raise CatadioptricError(f"{path}: no such image file")
+    data = np.fromfile(path, dtype=np.uint8) if path.is_file() else None
+    if data is None or data.size == 0:
+        raise CatadioptricError(f"{path}: expected an image file, got {'a folder' if path.is_dir() else 'an empty file'}")
+    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise CatadioptricError(f"{path}: cannot read the image (expected an 8-bit RGB PNG or JPEG)")
+    if img.dtype != np.uint8:
+        raise CatadioptricError(f"{path}: expected an 8-bit image, got {img.dtype.itemsize * 8}-bit")
+    if img.ndim == 2 or img.shape[2] == 1:
+        raise CatadioptricError(f"{path}: expected an RGB colour image, got a grayscale image")
+    if img.shape[2] == 4:
+        img = img[:, :, :3]
+    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+
+def default_setup_path(image_path) -> Path:
+    """IMAGE.toml beside IMAGE.png."""
+    return Path(image_path).with_suffix(".toml")
+
+
+def run_reconstruction(image_path, setup_path=None, method=None, cube_size=None, progress=None):
+    """Validate the inputs and reconstruct; returns (setup, setup_path, image, Reconstruction)."""
+    from depth.reconstruct import ALL_METHODS, DEFAULT_METHOD, reconstruct
+    method = method or DEFAULT_METHOD
+    if method not in ALL_METHODS:
+        raise CatadioptricError(f"--method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
+    if cube_size is not None and not (np.isfinite(cube_size) and cube_size > 0):
+        raise CatadioptricError(f"--cube-size: expected a positive edge length in metres, got {cube_size}")
+    setup_path = Path(setup_path) if setup_path else default_setup_path(image_path)
+    image = read_image(image_path)
+    setup = load_setup(setup_path)
+    w, h = setup.camera.resolution
+    if image.shape[:2] != (h, w):
+        raise CatadioptricError(f"{image_path}: expected {w}×{h} pixels ({setup_path}: camera.resolution), "
+                                f"got {image.shape[1]}×{image.shape[0]}")
+    from depth.errors import DepthError
+    try:
+        rec = reconstruct(image, setup.camera.build(), setup.mirror.build(), method=method,
+                          cube_size=cube_size, progress=progress)
+    except DepthError as exc:
+        raise CatadioptricError(f"{image_path}: {exc}") from None
+    return setup, setup_path, image, rec
+
+
+def result_dict(image_path, setup_path, rec) -> dict:
+    """The reconstruct result of SETUP_FORMAT.md (plus `refused` and the method used)."""
+    return {"image": Path(image_path).name, "setup": Path(setup_path).name, "method": rec.method,
+            "cubes": [c.to_dict() for c in rec.cubes], "refused": [r.to_dict() for r in rec.refused]}
+
+
+def draw_overlay(image: np.ndarray, rec) -> np.ndarray:
+    """The image with each face outline, its corners and its depth drawn on it : (H, W, 3) uint8 RGB."""
+    out = image.copy()
+    outline = cv2.dilate(rec.mirror_mask.astype(np.uint8), np.ones((3, 3), np.uint8)) - rec.mirror_mask.astype(np.uint8)
+    out[outline > 0] = (255, 255, 255)
+    scale = 8  # sub-pixel drawing: coordinates in 1/8 px
+    for c in rec.cubes:
+        pts = np.round((c.corners_px + 0.5) * scale - 0.5).astype(np.int32)  # pixel centres → cv2 coords
+        cv2.polylines(out, [pts.reshape(-1, 1, 2)], True, (255, 255, 0), 1, cv2.LINE_AA, shift=3)
+        for p in pts:
+            cv2.circle(out, tuple(int(v) for v in p), 3 * scale, (255, 0, 255), 1, cv2.LINE_AA, shift=3)
+        x0, y0 = c.bbox[0], max(c.bbox[1] - 8, 12)
+        label = f"{c.depth:.3f} m"
+        cv2.putText(out, label, (x0, y0), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 3, cv2.LINE_AA)
+        cv2.putText(out, label, (x0, y0), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1, cv2.LINE_AA)
+    for r in rec.refused:
+        x0, y0, x1, y1 = r.bbox
+        cv2.rectangle(out, (x0, y0), (x1, y1), (255, 60, 60), 1)
+        cv2.putText(out, "refused", (x0, max(y0 - 6, 12)), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 60, 60), 1, cv2.LINE_AA)
+    return out
+
+
+def print_table(console, result: dict, truth: dict | None = None) -> None:
+    """A rich table of the cubes (with errors against `truth` cubes when given)."""
+    from rich.table import Table
+    t = Table(title=f"{result['image']}: {len(result['cubes'])} cube(s), method {result['method']}")
+    cols = ["#", "depth (m)", "±σ (m)", "size (m)", "centre (m)", "AR r_i"]
+    if truth:
+        cols += ["true depth", "centre err", "size err"]
+    for c in cols:
+        t.add_column(c, justify="right")
+    matches = match_truth(result, truth) if truth else [None] * len(result["cubes"])
+    for i, (c, tc) in enumerate(zip(result["cubes"], matches)):
+        row = [str(i), f"{c['depth']:.4f}", f"{c['uncertainty']['depth']:.4f}", f"{c['size']:.4f}",
+               "[" + ", ".join(f"{x:+.3f}" for x in c["center"]) + "]", f"{c['aspect_ratio']:.3f}"]
+        if truth:
+            if tc is None:
+                row += ["—", "—", "—"]
+            else:
+                err = np.linalg.norm(np.subtract(c["center"], tc["center"])) / tc["depth"]
+                row += [f"{tc['depth']:.4f}", f"{100 * err:.2f} %", f"{100 * (c['size'] / tc['size'] - 1):+.2f} %"]
+        t.add_row(*row)
+    console.print(t)
+    for r in result.get("refused", []):
+        console.print(f"refused cube at {r['bbox_px']}: {r['reason']}")
+
+
+def match_truth(result: dict, truth: dict) -> list:
+    """For each result cube, the truth cube whose face-corner centroid is nearest in the image (≤ 20 px)."""
+    out = []
+    tcs = truth.get("cubes", [])
+    for c in result["cubes"]:
+        m = np.mean(c["front_face_corners_px"], axis=0)
+        best, dist = None, 20.0
+        for tc in tcs:
+            px = np.asarray(tc["front_face_corners_px"], dtype=float)
+            if not np.all(np.isfinite(px)):
+                continue
+            d = np.linalg.norm(px.mean(axis=0) - m)
+            if d < dist:
+                best, dist = tc, d
+        out.append(best)
+    return out
+
+
+def write_outputs(result: dict, json_path, overlay_path=None, overlay: np.ndarray | None = None) -> list:
+    """Write the JSON result (and the overlay PNG) together."""
+    from catadioptric.simulate import encode_png
+    with OutputSet() as out:
+        out.write_text(json_path, json.dumps(result, indent=2) + "\n")
+        if overlay_path is not None:
+            out.write_bytes(overlay_path, encode_png(overlay))
+    return [Path(json_path)] + ([Path(overlay_path)] if overlay_path is not None else [])

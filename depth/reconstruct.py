@@ -1,0 +1,161 @@
+"""Reconstruction of cubes from one mirror image: `reconstruct` returns a `Reconstruction`.
+
+Pipeline: the exact ray map of every pixel (camera traced against the mirror alone) gives the
+mirror region; `depth.measure` finds the coloured cubes there and outlines each front face to
+sub-pixel precision; `depth.estimate` turns each face into a cube (depth, size, 3D centre) with
+the chosen estimator. Cubes cut by the mirror's edge or by another cube are refused, with the
+reason, rather than guessed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from depth.errors import DepthError
+from depth.estimate import METHODS, CubeEstimate, FaceMeasurement, estimate_face, estimate_faces_shape_prior
+
+__all__ = ["ALL_METHODS", "CubeResult", "Refusal", "Reconstruction", "reconstruct", "check_image"]
+
+ALL_METHODS = METHODS + ("shape_prior",)
+DEFAULT_METHOD = "exact"
+
+
+@dataclass(frozen=True)
+class CubeResult:
+    """One recovered cube: the estimate, its distance from the mirror axis, and its face in pixels."""
+
+    estimate: CubeEstimate
+    depth: float
+    depth_std: float
+    corners_px: np.ndarray
+    bbox: tuple
+    edge_points: int
+
+    def to_dict(self) -> dict:
+        """The per-cube keys of SETUP_FORMAT.md's result, plus diagnostics (added keys only)."""
+        e = self.estimate
+        return {
+            "center": [float(x) for x in e.center],
+            "size": float(e.size),
+            "depth": float(self.depth),
+            "front_face_center": [float(x) for x in e.front_face_center],
+            "front_face_corners_px": [[float(u), float(v)] for u, v in self.corners_px],
+            "aspect_ratio": float(e.aspect_ratio),
+            "method": e.method,
+            "uncertainty": {"depth": float(self.depth_std), "size": float(e.std.get("size", np.nan)),
+                            "center": float(e.std.get("center", np.nan))},
+            "front_face_normal": [float(x) for x in e.normal],
+            "local_xslit": e.xslit,
+            "edge_points": int(self.edge_points),
+            "bbox_px": [int(x) for x in self.bbox],
+        }
+
+
+@dataclass(frozen=True)
+class Refusal:
+    """A cube seen but not estimated, with the reason."""
+
+    bbox: tuple
+    reason: str
+
+    def to_dict(self) -> dict:
+        return {"bbox_px": [int(x) for x in self.bbox], "reason": self.reason}
+
+
+@dataclass(frozen=True)
+class Reconstruction:
+    """All cubes of one image. `mirror_mask` (H, W) bool is the mirror region searched."""
+
+    method: str
+    cubes: list
+    refused: list
+    mirror_mask: np.ndarray = field(repr=False)
+
+
+def check_image(image, resolution) -> np.ndarray:
+    """Validate an RGB image array against the setup's (W, H); returns it as float64 in [0, 1]."""
+    img = np.asarray(image)
+    if img.ndim != 3 or img.shape[2] != 3:
+        raise DepthError(f"image: expected an RGB image (H, W, 3), got shape {img.shape}")
+    w, h = resolution
+    if img.shape[:2] != (h, w):
+        raise DepthError(f"image: expected {w}×{h} pixels (the setup's camera.resolution), "
+                         f"got {img.shape[1]}×{img.shape[0]}")
+    if img.dtype == np.uint8:
+        img = img.astype(np.float64) / 255.0
+    img = np.asarray(img, dtype=np.float64)
+    if not np.all(np.isfinite(img)) or img.min() < 0 or img.max() > 1:
+        raise DepthError("image: expected values in [0, 1]")
+    return img
+
+
+def _bbox(mask: np.ndarray) -> tuple:
+    ys, xs = np.nonzero(mask)
+    return (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1)
+
+
+def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: float | None = None,
+                progress=None) -> Reconstruction:
+    """Find and estimate every cube in a mirror image.
+
+    Parameters
+    ----------
+    image : (H, W, 3) uint8 or float64 in [0, 1], sRGB
+    camera : raytrace.camera.PinholeCamera
+    mirror : raytrace.mirror.CylinderMirror (or any mirror with `intersect`)
+    method : "exact" (default), "ddar", "dds" or "shape_prior"
+    cube_size : float, optional — known edge length in metres
+    progress : callable(done, total), optional
+    """
+    from raytrace.truth import mirror_rays
+    from depth.measure import detect_cubes, face_outline
+
+    if method not in ALL_METHODS:
+        raise DepthError(f"method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
+    img = check_image(image, camera.resolution)
+    w, h = camera.resolution
+    ray_map = mirror_rays(camera, mirror)
+    mask = ray_map.hit.reshape(h, w)
+    if not mask.any():
+        raise DepthError("image: the setup's camera sees no mirror")
+    if np.ptp(img[mask], axis=0).max() < 2.0 / 255.0:
+        raise DepthError("image: no mirror content (the mirror region is uniform)")
+
+    def rays(px):
+        r = mirror_rays(camera, mirror, px)
+        return r.points, r.directions
+
+    detections = detect_cubes(img, mask)
+    cubes, refused, measured = [], [], []
+    total = max(len(detections), 1)
+    for i, det in enumerate(detections):
+        bbox = _bbox(det.mask)
+        if det.reason or det.cut_by_mirror_edge or det.occluded:
+            refused.append(Refusal(bbox, det.reason or ("cut by the mirror's edge" if det.cut_by_mirror_edge
+                                                        else "occluded by another cube")))
+            continue
+        outline = face_outline(img, det.front_face_mask)
+        if not outline:
+            refused.append(Refusal(bbox, f"face outline: {outline.reason}"))
+            continue
+        ys, xs = np.nonzero(det.front_face_mask)
+        meas = FaceMeasurement(tuple(outline.sides), outline.corners_px,
+                               np.column_stack([xs, ys]).astype(np.float64), outline.edge_noise_px)
+        measured.append((meas, bbox, outline))
+        if progress is not None:
+            progress(i + 1, total)
+    if method == "shape_prior":
+        estimates = estimate_faces_shape_prior(rays, [m for m, _, _ in measured])
+    else:
+        estimates = [estimate_face(rays, m, method=method, cube_size=cube_size) for m, _, _ in measured]
+    for est, (meas, bbox, outline) in zip(estimates, measured):
+        if not est:
+            refused.append(Refusal(bbox, f"{est.method}: {est.reason}"))
+            continue
+        depth = float(mirror.distance_to_axis(est.center[None])[0])
+        cubes.append(CubeResult(estimate=est, depth=depth, depth_std=float(est.std.get("z", np.nan)),
+                                corners_px=outline.corners_px, bbox=bbox, edge_points=outline.n_points))
+    cubes.sort(key=lambda c: c.bbox[0])
+    return Reconstruction(method=method, cubes=cubes, refused=refused, mirror_mask=mask)
