@@ -1,0 +1,1 @@
+"""Benchmarks of the catadioptric project, run with `python -m bench` (`make bench`)."""

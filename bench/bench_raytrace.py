@@ -1,0 +1,162 @@
+"""Raytrace benchmark: our renderer vs raw embreex, trimesh and Mitsuba 3 on one mirror scene, plus peak memory.
+
+Scene: the SETUP_FORMAT example camera (1600×1200, f = 3500 px, at [0, 0, 0.55] looking at the
+origin), cylinder mirror R = 0.1, three 4 cm cubes seen in the mirror, 4 spp. All times are
+measured in this one run; the ratios are what matters on a noisy machine.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+from raytrace._embree import build_scene
+from raytrace.camera import PinholeCamera, sample_offsets
+from raytrace.mirror import CylinderMirror, reflect
+from raytrace.render import render
+from raytrace.scene import Cube, DirectionalLight, Scene
+
+SPP = 4
+
+
+def make_scene():
+    mirror = CylinderMirror(0.1, 0.49, [0.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    cubes = [
+        Cube.from_euler_deg(0.04, [0.24, 0.03, 0.90], [0.0, -165.0, 0.0], [0.8, 0.1, 0.1]),
+        Cube.from_euler_deg(0.04, [-0.2, -0.05, 0.8], [0.0, 160.0, 0.0], [0.1, 0.7, 0.2]),
+        Cube.from_euler_deg(0.04, [0.0, 0.08, 0.7], [10.0, 180.0, 0.0], [0.2, 0.3, 0.9]),
+    ]
+    return Scene(mirror, cubes, light=DirectionalLight([0.4, 0.8, 0.6], 0.8, 0.25))
+
+
+def make_camera(width=1600, height=1200):
+    f = 3500.0 * width / 1600
+    return PinholeCamera.from_look_at((width, height), f, None, [0.0, 0.0, 0.55], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+
+
+def all_rays(scene, cam):
+    """Primary rays at SPP stratified samples for every pixel, and the exact reflected rays of those on the mirror."""
+    px = (cam.pixel_grid()[:, None, :] + sample_offsets(SPP, 0)[None]).reshape(-1, 2)
+    o, d = cam.rays(px)
+    _, hit, p, n = scene.mirror.intersect(o, d)
+    r = reflect(d[hit], n[hit])
+    return (o, d), (p[hit] + 1e-6 * n[hit], r)
+
+
+def time_raw_embree(scene, primary, reflected):
+    tris = np.concatenate([c.mesh().triangles for c in scene.objects] + [scene.mirror.mesh(720).triangles])
+    es = build_scene(tris)
+    es_obj = build_scene(np.concatenate([c.mesh().triangles for c in scene.objects]))
+    batches = [(es, *[np.ascontiguousarray(a, dtype=np.float32) for a in primary]), (es_obj, *[np.ascontiguousarray(a, dtype=np.float32) for a in reflected])]
+    t = time.perf_counter()
+    for s, o, d in batches:
+        s.run(o, d)
+    return time.perf_counter() - t
+
+
+def time_trimesh(scene, primary, reflected):
+    import trimesh
+    from trimesh.ray.ray_pyembree import RayMeshIntersector
+
+    full = RayMeshIntersector(trimesh.util.concatenate([c.mesh() for c in scene.objects] + [scene.mirror.mesh(720)]))
+    objs = RayMeshIntersector(trimesh.util.concatenate([c.mesh() for c in scene.objects]))
+    t = time.perf_counter()
+    full.intersects_location(*primary, multiple_hits=False)
+    objs.intersects_location(*reflected, multiple_hits=False)
+    return time.perf_counter() - t
+
+
+def time_mitsuba(scene, cam):
+    try:
+        import mitsuba as mi
+    except ImportError:
+        return None
+    mi.set_variant("scalar_rgb")
+    w, h = cam.resolution
+    m = scene.mirror
+    half = m.height / 2 * m.axis
+    d = {
+        "type": "scene",
+        "integrator": {"type": "path", "max_depth": 4},
+        "sensor": {
+            "type": "perspective",
+            "fov_axis": "x",
+            "fov": float(np.degrees(2 * np.arctan(w / (2 * cam.K[0, 0])))),
+            "to_world": mi.ScalarTransform4f().look_at(origin=cam.position.tolist(), target=(cam.position + cam.R[2]).tolist(), up=(-cam.R[1]).tolist()),
+            "film": {"type": "hdrfilm", "width": w, "height": h},
+            "sampler": {"type": "stratified", "sample_count": SPP},
+        },
+        "mirror": {"type": "cylinder", "p0": (m.center - half).tolist(), "p1": (m.center + half).tolist(), "radius": m.radius,
+                   "bsdf": {"type": "conductor", "material": "none"}},
+        "sun": {"type": "directional", "direction": (-scene.light.to_light).tolist(), "irradiance": {"type": "rgb", "value": 0.8}},
+        "sky": {"type": "constant", "radiance": {"type": "rgb", "value": 0.05}},
+    }
+    for k, c in enumerate(scene.objects):
+        m4 = np.eye(4)
+        m4[:3, :3] = c.rotation * (c.size / 2)
+        m4[:3, 3] = c.center
+        d[f"cube{k}"] = {"type": "cube", "to_world": mi.ScalarTransform4f(m4.tolist()),
+                         "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": c.color.tolist()}}}
+    t = time.perf_counter()
+    mi.render(mi.load_dict(d))
+    return time.perf_counter() - t
+
+
+MEMORY_SCRIPT = """
+import json, resource, sys, time
+sys.path.insert(0, {root!r})
+from bench.bench_raytrace import make_camera, make_scene
+from raytrace.render import render
+t = time.perf_counter()
+r = render(make_scene(), make_camera(2048, 1536), spp=4, seed=0, workers=2)
+dt = time.perf_counter() - t
+print(json.dumps({{"self_kib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
+                  "children_kib": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, "seconds": dt}}))
+"""
+
+
+def peak_memory():
+    """Peak RSS of a fresh process rendering 2048×1536 at 4 spp (main process, and the largest worker)."""
+    from pathlib import Path
+
+    root = str(Path(__file__).resolve().parent.parent)
+    out = subprocess.run([sys.executable, "-c", MEMORY_SCRIPT.format(root=root)], capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main():
+    scene, cam = make_scene(), make_camera()
+    render(scene, make_camera(160, 120), spp=SPP, workers=1)  # import/JIT warm-up of numpy paths only
+    t = time.perf_counter()
+    ours = render(scene, cam, spp=SPP, seed=0, workers=2)
+    t_cold = time.perf_counter() - t
+    t = time.perf_counter()
+    ours = render(scene, cam, spp=SPP, seed=0, workers=2)
+    t_ours = time.perf_counter() - t  # second call: page cache and allocator warm, as in a long session
+    counts = np.bincount(ours.object_id.ravel() + 1, minlength=4)
+    print(f"scene: 1600x1200, {SPP} spp, cylinder R=0.1, 3 cubes of 4 cm; cube pixels {counts[1:].tolist()}, "
+          f"mirror pixels {ours.via_mirror.mean():.1%}, supersampled pixels {ours.supersampled.mean():.2%}")
+    print(f"ours (render, 2 processes, adaptive): {t_ours:6.2f} s warm, {t_cold:6.2f} s first call  ({ours.rays_traced / 1e6:.2f} M rays traced)")
+    primary, reflected = all_rays(scene, cam)
+    n_rays = len(primary[0]) + len(reflected[0])
+    t_embree = time_raw_embree(scene, primary, reflected)
+    print(f"raw embreex run, all {n_rays / 1e6:.2f} M primary+reflected rays, 1 core: {t_embree:6.2f} s")
+    t_trimesh = time_trimesh(scene, primary, reflected)
+    print(f"trimesh intersects_location, same rays: {t_trimesh:6.2f} s")
+    del primary, reflected
+    t_mi = time_mitsuba(scene, cam)
+    print(f"mitsuba 3 scalar_rgb path tracer:     {t_mi:6.2f} s" if t_mi else "mitsuba 3: not installed (pip install '.[bench]'), skipped")
+    for label, tt in (("warm", t_ours), ("first call", t_cold)):
+        print(f"ratios ({label}): ours/raw embree = {tt / t_embree:.2f} (target <= 2), ours/trimesh = {tt / t_trimesh:.2f}"
+              + (f", ours/mitsuba = {tt / t_mi:.2f} (target <= 0.5)" if t_mi else ""))
+    mem = peak_memory()
+    print(f"2048x1536 4 spp render: {mem['seconds']:.2f} s, peak RSS main {mem['self_kib'] / 2**20:.2f} GiB, "
+          f"largest worker {mem['children_kib'] / 2**20:.2f} GiB (target < 4 GiB)")
+
+
+if __name__ == "__main__":
+    main()
