@@ -220,10 +220,11 @@ def trace_paths(tracer, origins, directions, bounces: int) -> dict:
     d = np.asarray(directions, dtype=np.float64)
     travelled = np.zeros(n)
     rays = 0
+    with_mirror = True
     for bounce in range(bounces + 1):
         if len(idx) == 0:
             break
-        geom, prim, t_guess = tracer.first_hit(o, d, True)
+        geom, prim, t_guess = tracer.first_hit(o, d, with_mirror)
         rays += len(idx)
         is_m = geom == geo.mirror_gid
         m_t = m_p = m_n = None
@@ -289,6 +290,8 @@ def trace_paths(tracer, origins, directions, bounces: int) -> dict:
             key[out] = 2
             break
         side = np.sign(np.einsum("ij,ij->i", r, m_n))
+        # a ray leaving the outside of a convex cylinder cannot meet it again
+        with_mirror = not (isinstance(scene.mirror, CylinderMirror) and np.all(side > 0))
         o = m_p + (REFLECT_OFFSET * side)[:, None] * m_n
         d = r
         travelled = travelled[mi] + m_t
