@@ -436,7 +436,7 @@ def face_outline(
     image: np.ndarray,
     face_mask: np.ndarray,
     *,
-    corner_margin_px: float = 2.5,
+    corner_margin_px: float = 2.0,
     profile_half_width_px: float = 1.5,
     min_contrast: float = 0.02,
     min_points_per_side: int = 5,
@@ -704,7 +704,7 @@ def _refine(linear, model, half_width, margin, min_contrast, min_points, spacing
             new_lines.append(coef)
             nn = np.sign(n[good, 0:1]) * np.stack([np.ones_like(slope), -slope], axis=1) / np.hypot(1.0, slope)[:, None]
         else:
-            degree = 2 if len(q) >= 6 else 1
+            degree = 2 if len(q) >= 7 else 1
             coef, keep = _robust_polyfit(q[:, 0], q[:, 1], degree)
             coef = np.r_[np.zeros(3 - len(coef)), coef]
             slope = 2 * coef[0] * q[:, 0] + coef[1]
