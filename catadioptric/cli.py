@@ -9,6 +9,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+import numpy as np
+
 from catadioptric import __version__
 from catadioptric.errors import CatadioptricError
 
@@ -94,6 +96,103 @@ def _cmd_simulate(args) -> int:
     return 0
 
 
+def _cmd_fit(args) -> int:
+    import json
+    from rich.console import Console
+    from catadioptric import design
+    from catadioptric.setup import load_setup
+    setup = load_setup(args.setup)
+    if args.tiles:
+        with Progress("fitting tiles") as bar:
+            tm = design.fit_tile_map(setup, args.tiles, progress=bar)
+        result = {"tiles": design.tile_map_dict(tm)}
+        if args.roi is None:
+            result["mirror"] = None
+    else:
+        result = design.fit_region(setup, args.roi)
+    if args.json:
+        print(json.dumps(result, indent=2))
+        return 0
+    console = Console(width=None if sys.stdout.isatty() else 120)
+    if "tiles" in result:
+        t = result["tiles"]
+        valid = np.asarray(t["valid"])
+        ratio = np.array([[np.nan if v is None else v for v in row] for row in t["ratio"]])
+        rms = np.array([[np.nan if v is None else v for v in row] for row in t["rms_ray_distance"]])
+        console.print(f"{valid.sum()} of {valid.size} tiles fitted; z2/z1 from {np.nanmin(ratio):.2f} to "
+                      f"{np.nanmax(ratio):.2f}; rms ray-to-slit distance median {np.nanmedian(rms) * 1e3:.3f} mm, "
+                      f"max {np.nanmax(rms) * 1e3:.3f} mm")
+        return 0
+    if not result["ok"]:
+        console.print(f"no two-slit fit for ROI {result['roi']}: {result['reason']} ({result['glc_type']})")
+        return 0
+    console.print(f"ROI {result['roi']}: {result['n_rays']} rays, GLC type {result['glc_type']}")
+    for i, s in enumerate(result["slits"], 1):
+        console.print(f"  slit {i}: point {np.round(s['point'], 5).tolist()} direction {np.round(s['direction'], 5).tolist()}")
+    console.print(f"  z1 = {result['z1']:.5f} m, z2 = {result['z2']:.5f} m, θ2 − θ1 = "
+                  f"{result['theta2_deg'] - result['theta1_deg']:.2f}°, z2/z1 = {result['ratio']:.3f}")
+    console.print(f"  rms ray-to-slit distance {result['rms_ray_distance']:.3e} m "
+                  f"(max {result['max_ray_distance']:.3e} m), condition {result['condition']:.3g}")
+    return 0
+
+
+def _cmd_design(args) -> int:
+    import io
+    import json
+    from pathlib import Path
+    from rich.console import Console
+    from rich.table import Table
+    from catadioptric import design
+    from catadioptric.outputs import OutputSet
+    from catadioptric.setup import load_setup, setup_to_toml
+    if args.plot and Path(args.plot).suffix.lower() != ".png":
+        raise CatadioptricError(f"{args.plot}: --plot: expected an output file name ending in .png")
+    if args.cube_size <= 0:
+        raise CatadioptricError(f"--cube-size: expected a positive edge length in metres, got {args.cube_size}")
+    setup = load_setup(args.setup)
+    if args.optimize:
+        if args.depth_range is None:
+            raise CatadioptricError("--optimize: expected --depth-range A B to optimise over")
+        with Progress("searching setups") as bar:
+            best, score, rows = design.optimize_setup(setup, args.depth_range, args.cube_size, progress=bar)
+        print(f"# best of {len(rows)} setups: mean relative depth error {100 * score:.3f} % "
+              f"for {100 * args.cube_size:.0f} cm cubes over {args.depth_range[0]}-{args.depth_range[1]} m")
+        print(setup_to_toml(best))
+        return 0
+    des = design.design_setup(setup, args.depth_range, args.cube_size)
+    tm = design.fit_tile_map(setup, args.tiles) if args.tiles else None
+    if args.json:
+        d = des.to_dict()
+        if tm is not None:
+            d["tiles"] = design.tile_map_dict(tm)
+        print(json.dumps(d, indent=2))
+    else:
+        console = Console(width=None if sys.stdout.isatty() else 120)
+        f = des.fit
+        console.print(f"centre of the mirror image: slits z1 = {f['z1']:.4f} m, z2 = {f['z2']:.4f} m behind the "
+                      f"virtual image plane ({des.plane_distance:.4f} m from the axis); baseline {f['baseline']:.4f} m, "
+                      f"z2/z1 = {f['ratio']:.2f}, rms ray-to-slit {f['rms_ray_distance']:.2e} m")
+        console.print(f"maximum discernible depth from the axis: {des.max_depth_1px:.1f} m (ε = 1 px), "
+                      f"{des.max_depth_01px:.1f} m (ε = 0.1 px)")
+        t = Table(title=f"unit square (r_o = 1); expected error for a {100 * des.cube_size:.0f} cm cube, ±1 px extents")
+        for c in ("depth (m)", "AR r_i", "∂r_i/∂z (1/m)", "σ depth (mm)", "σ/depth (%)"):
+            t.add_column(c, justify="right")
+        for i in range(0, len(des.depths), max(1, len(des.depths) // 10)):
+            t.add_row(f"{des.depths[i]:.3f}", f"{des.aspect_ratio[i]:.4f}", f"{des.sensitivity[i]:.4f}",
+                      f"{1e3 * des.expected_error[i]:.2f}", f"{100 * des.expected_error[i] / des.depths[i]:.2f}")
+        console.print(t)
+        if tm is not None:
+            console.print(f"tiles: {tm.valid.sum()} of {tm.valid.size} fitted; z2/z1 {np.nanmin(tm.ratio):.2f}–"
+                          f"{np.nanmax(tm.ratio):.2f}; baseline {np.nanmin(tm.baseline):.4f}–{np.nanmax(tm.baseline):.4f} m")
+    if args.plot:
+        buf = io.BytesIO()
+        design.plot_design(des, buf)
+        with OutputSet() as out:
+            out.write_bytes(args.plot, buf.getvalue())
+        print(args.plot)
+    return 0
+
+
 def _cmd_reconstruct(args) -> int:
     from pathlib import Path
     from rich.console import Console
@@ -156,15 +255,18 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--roi", type=float, nargs=4, metavar=("X0", "Y0", "X1", "Y1"))
     f.add_argument("--tiles", type=int, metavar="N")
     f.add_argument("--json", action="store_true")
-    f.set_defaults(func=_not_available("fit"))
+    f.set_defaults(func=_cmd_fit)
 
     d = sub.add_parser("design", help="slits, sensitivity and discernible depth of a mirror setup")
     d.add_argument("setup", metavar="SETUP.toml")
     d.add_argument("--depth-range", type=float, nargs=2, metavar=("A", "B"))
     d.add_argument("--json", action="store_true")
     d.add_argument("--plot", metavar="OUT.png")
-    d.add_argument("--optimize", action="store_true")
-    d.set_defaults(func=_not_available("design"))
+    d.add_argument("--optimize", action="store_true",
+                   help="search camera distance and mirror radius (±50 %%) for the least expected depth error; prints TOML")
+    d.add_argument("--cube-size", type=float, default=0.04, metavar="S", help="cube edge for the expected error (m)")
+    d.add_argument("--tiles", type=int, metavar="N", help="also fit an N×N tile map")
+    d.set_defaults(func=_cmd_design)
 
     r = sub.add_parser("reconstruct", help="cube depths, sizes and positions from one mirror image")
     r.add_argument("image", metavar="IMAGE.png")

@@ -1,0 +1,88 @@
+"""Tests of catadioptric.design and the fit/design commands: slit positions, sensitivity, errors."""
+
+import json
+
+import numpy as np
+import pytest
+
+from catadioptric import design
+from catadioptric.cli import main
+from catadioptric.setup import Setup
+
+
+def mirror_setup(radius, distance, resolution=(320, 240), focal=None, objects=()):
+    focal = focal or 0.8 * resolution[0] * distance / (2 * radius)  # the mirror spans ~80 % of the width
+    return Setup.from_dict({
+        "camera": {"resolution": list(resolution), "focal_px": [focal, focal], "position": [0.0, 0.0, distance],
+                   "look_at": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0]},
+        "mirror": {"type": "cylinder", "radius": radius, "height": 1.0, "center": [0.0, 0.0, 0.0],
+                   "axis": [0.0, 1.0, 0.0]},
+        "objects": list(objects)})
+
+
+@pytest.mark.parametrize("radius, distance", [(0.1, 0.6), (0.05, 0.4), (0.15, 1.0)])
+def test_centre_fit_puts_the_slits_where_the_mirror_geometry_says(radius, distance):
+    s = mirror_setup(radius, distance, resolution=(640, 480), focal=1500.0)
+    fit = design.fit_region(s, design.centre_roi(s))  # a 40×40 px ROI at the image centre
+    assert fit["ok"] and fit["glc_type"] == "xslit"
+    do = distance - radius
+    # Independent geometry (GEOMETRY_NOTES): the axis-parallel slit is the convex-mirror image of the
+    # camera in the cross-section, R·do/(2·do + R) behind the surface; the other is do behind it.
+    axis_slit = next(sl for sl in fit["slits"] if abs(sl["direction"][1]) > 0.99)
+    other = next(sl for sl in fit["slits"] if abs(sl["direction"][1]) < 0.01)
+    assert radius - axis_slit["point"][2] == pytest.approx(radius * do / (2 * do + radius), rel=0.01)
+    assert radius - other["point"][2] == pytest.approx(do, rel=0.01)
+    assert abs(other["point"][1]) < 1e-3 * distance  # at the camera's height
+
+
+def _measured_ar(setup, frame, square_depth):
+    """AR of a frontal square `square_depth` from the axis at the image centre, from the simulator's
+    exact corner pixels (the front face of a 4 cm cube centred 2 cm further away)."""
+    from raytrace.scene import Cube
+    from raytrace.truth import cube_truth, mirror_rays
+    cam, mir = setup.camera.build(), setup.mirror.build()
+    rot = np.array([[-1.0, 0, 0], [0, 1, 0], [0, 0, -1]])  # local +z face looks at the axis (-z)
+    truth = cube_truth(cam, mir, Cube(0.04, np.array([0.0, 0.0, square_depth + 0.02]), rot))
+    px = np.array(truth["front_face_corners_px"])
+    r = mirror_rays(cam, mir, px)
+    k = frame.kappa(frame.rays_to_plane(r.points, r.directions))
+    ext = np.ptp(k, axis=0)
+    return ext[0] / ext[1]
+
+
+def test_design_sensitivity_matches_finite_differences_of_simulated_corners():
+    s = mirror_setup(0.1, 0.55, resolution=(640, 480))
+    des = design.design_setup(s, (0.65, 1.0), n=8)
+    _, frame = design._fit_frame(s, design.centre_roi(s))
+    for depth, sens, ar in zip(des.depths[1:-1], des.sensitivity[1:-1], des.aspect_ratio[1:-1]):
+        h = 0.01
+        fd = (_measured_ar(s, frame, depth + h) - _measured_ar(s, frame, depth - h)) / (2 * h)
+        assert sens == pytest.approx(fd, rel=0.05)
+        assert ar == pytest.approx(_measured_ar(s, frame, depth), rel=0.01)
+
+
+def test_design_expected_error_grows_with_depth_and_bad_range_is_refused():
+    s = mirror_setup(0.1, 0.55)
+    des = design.design_setup(s, (0.3, 1.0))
+    assert np.all(np.diff(des.expected_error) > 0)
+    assert des.max_depth_01px > des.max_depth_1px > 1.0
+    with pytest.raises(Exception, match="--depth-range: expected"):
+        design.design_setup(s, (0.05, 1.0))
+
+
+def test_fit_and_design_commands(capsys, valid_setup, write_setup, tmp_path):
+    setup = write_setup(valid_setup)
+    assert main(["fit", str(setup), "--roi", "60", "40", "100", "80", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["glc_type"] == "xslit" and len(out["slits"]) == 2 and out["z1"] < 0 and out["z2"] < out["z1"]
+    assert main(["fit", str(setup), "--roi", "0", "0", "999", "10"]) == 1
+    assert "--roi: expected" in capsys.readouterr().err
+    plot = tmp_path / "design.png"
+    assert main(["design", str(setup), "--depth-range", "0.3", "1.0", "--plot", str(plot)]) == 0
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert str(plot) in capsys.readouterr().out
+    assert main(["design", str(setup), "--depth-range", "0.3", "1.0", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert len(d["curve"]) > 3 and d["max_discernible_depth"]["eps_1px"] > 0
+    assert main(["design", str(setup), "--optimize"]) == 1
+    assert "--optimize: expected --depth-range" in capsys.readouterr().err
