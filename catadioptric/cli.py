@@ -231,6 +231,14 @@ def _truth_beside(image_path):
         return None
 
 
+def _cmd_report(args) -> int:
+    from catadioptric import report
+    with Progress("writing the report") as bar:
+        index = report.report(args.input, args.output, args.setup, method=args.method, progress=bar)
+    print(index)
+    return 0
+
+
 def _cmd_demo(args) -> int:
     from catadioptric import demo
     return demo.run(args)
@@ -282,10 +290,12 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("input", metavar="IMAGE.png|RESULT.json")
     rp.add_argument("--setup", metavar="SETUP.toml")
     rp.add_argument("-o", "--output", metavar="DIR", required=True)
-    rp.set_defaults(func=_not_available("report"))
+    rp.add_argument("--method", default=None, help="estimator when IMAGE.png is given (as reconstruct)")
+    rp.set_defaults(func=_cmd_report)
 
     dm = sub.add_parser("demo", help="run the built-in example")
-    dm.add_argument("-o", "--output", metavar="DIR", default=None)
+    dm.add_argument("-o", "--output", metavar="DIR", default=None,
+                    help="folder for the demo's image, result and report (default ./catadioptric-demo)")
     dm.set_defaults(func=_cmd_demo)
     return p
 
