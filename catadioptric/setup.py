@@ -6,7 +6,9 @@ Validation raises `SetupError` with one line naming the file, the key and what w
 
 Extensions to the contract (all optional, so older files stay valid):
 - `[scene]`: `background` (linear RGB), `ground` (bool: a grey checkered ground plane),
-  `light_direction` (world vector the light travels along), `ambient` (0..1).
+  `light_direction` (world vector the light travels along; the default comes from behind the
+  camera, above and to the side, so a cube face looking at the mirror is lit and its side
+  faces are not lit alike), `ambient` (0..1).
 """
 
 from __future__ import annotations
@@ -246,7 +248,7 @@ class SceneConfig:
 
     background: tuple[float, float, float] = (0.85, 0.85, 0.85)
     ground: bool = False
-    light_direction: tuple[float, float, float] = (-0.4, -1.0, -0.6)
+    light_direction: tuple[float, float, float] = (-0.25, -0.45, 0.85)
     ambient: float = 0.35
 
     KEYS: ClassVar[set] = {"background", "ground", "light_direction", "ambient"}

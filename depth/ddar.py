@@ -42,7 +42,7 @@ def _check_slits(z1, z2) -> tuple[float, float]:
         raise DepthError(f"z1={z1}, z2={z2}: expected finite slit depths")
     if z1 == 0.0 or z2 == 0.0:
         raise DegenerateGeometryError(f"z1={z1}, z2={z2}: a slit on the image plane carries no depth")
-    if np.isclose(z1, z2, rtol=1e-12, atol=0.0):
+    if abs(z1 - z2) <= 1e-12 * abs(z2):
         raise DegenerateGeometryError(
             f"z1 == z2 == {z1}: a pinhole; its aspect ratios do not depend on depth")
     return z1, z2

@@ -170,7 +170,7 @@ def depth_prior(r_i, z1: float, z2: float, sigma=0.0, r_o_bounds: tuple[float, f
     hi = max(rs.min(), rs.min() * z1 / z2, rs.max() * z1 / z2, rs.max())
     if r_o_bounds is not None:
         lo, hi = map(float, r_o_bounds)
-    grid = np.linspace(lo, hi, 4001)[1:-1]
+    grid = np.linspace(lo, hi, 401)[1:-1]
     z = ddar.depth_from_aspect_ratio(rs[None, :], z1, z2, grid[:, None], strict=False)
     ok = np.all(np.isfinite(z), axis=1)
     if not np.any(ok):
@@ -184,11 +184,18 @@ def depth_prior(r_i, z1: float, z2: float, sigma=0.0, r_o_bounds: tuple[float, f
 
     w = 1.0 / np.where(sig[order] > 0, sig[order], 1.0)
 
+    # Inner loop: Eqns. ardef and sensit written out (the public functions validate every call).
     def residual(p):
         zj = p[0] + p[1] * j
-        return (ddar.aspect_ratio(zj, z1, z2, p[2]) - rs) * w
+        return (z2 * (zj - z1) / (z1 * (zj - z2)) * p[2] - rs) * w
 
-    sol = least_squares(residual, x0, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=2000)
+    def jacobian(p):
+        zj = p[0] + p[1] * j
+        dr_dz = z2 * (z1 - z2) * p[2] / (z1 * (zj - z2) ** 2)
+        return np.column_stack([dr_dz, dr_dz * j, z2 * (zj - z1) / (z1 * (zj - z2))]) * w[:, None]
+
+    sol = least_squares(residual, x0, jac=jacobian, method="lm", x_scale="jac",
+                        xtol=1e-14, ftol=1e-14, gtol=1e-14, max_nfev=500)
     z0, dz, ro = sol.x
     zs = z0 + dz * j
     if np.any(zs <= zn) or not np.isfinite(ro):
