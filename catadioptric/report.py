@@ -212,6 +212,23 @@ def _tiles_for(resolution, n: int = 16) -> tuple[int, int]:
     return max(1, round(n * h / w)), n
 
 
+def _tile_map(camera, mirror, n: int = 16, progress=None):
+    """`fit_tiles` over the ray map of every `stride`-th pixel (each tile's fit subsamples its rays
+    anyway); tile bounds are returned in full-image pixels."""
+    import dataclasses
+    from raytrace.truth import mirror_rays
+    from xslit_fit.tiles import fit_tiles
+    w, h = camera.resolution
+    stride = max(1, round(max(w, h) / 640))
+    us, vs = np.arange(0, w, stride, dtype=np.float64), np.arange(0, h, stride, dtype=np.float64)
+    gu, gv = np.meshgrid(us, vs)
+    r = mirror_rays(camera, mirror, np.column_stack([gu.ravel(), gv.ravel()]))
+    shape = (len(vs), len(us))
+    tm = fit_tiles(r.points.reshape(*shape, 3), r.directions.reshape(*shape, 3), r.hit.reshape(shape),
+                   tiles=_tiles_for((w, h), n), max_rays_per_tile=400, progress=progress)
+    return dataclasses.replace(tm, bounds=np.minimum(tm.bounds * stride, [w, h, w, h]))
+
+
 def _xslit_slits(local_xslit: dict, half_length: float) -> list:
     out = []
     for k, s in enumerate((local_xslit or {}).get("slits", [])[:2]):
@@ -227,7 +244,6 @@ def build_report(inp: ReportInput, window_size=(1200, 800), progress=None) -> di
     from catadioptric.reconstruct import draw_overlay, match_truth
     from catadioptric.simulate import encode_png
     from raytrace.truth import mirror_rays
-    from xslit_fit.tiles import fit_tiles
 
     total = 5
     step = (lambda i: progress(i, total)) if progress is not None else (lambda i: None)
@@ -240,10 +256,7 @@ def build_report(inp: ReportInput, window_size=(1200, 800), progress=None) -> di
     files: dict[str, bytes] = {}
 
     # 1. The per-pixel ray map and the local fit quality over the mirror.
-    rays = mirror_rays(camera, mirror)
-    hit = rays.hit.reshape(h, w)
-    tm = fit_tiles(rays.points.reshape(h, w, 3), rays.directions.reshape(h, w, 3), hit,
-                   tiles=_tiles_for((w, h)), max_rays_per_tile=400)
+    tm = _tile_map(camera, mirror)
     boxes = [(*(c.get("bbox_px") or _corner_box(c)), f"#{i}") for i, c in enumerate(cubes)]
     files["tile_map.png"] = plots.tile_map_plot(tm, (w, h), boxes)
     step(1)
@@ -277,6 +290,7 @@ def build_report(inp: ReportInput, window_size=(1200, 800), progress=None) -> di
 
     # 4. The annotated image.
     if inp.image is not None:
+        hit = inp.rec.mirror_mask if inp.rec is not None else mirror_rays(camera, mirror).hit.reshape(h, w)
         files["annotated.png"] = encode_png(draw_overlay(inp.image, _overlay_source(inp, hit)))
     step(5)
 
@@ -374,8 +388,6 @@ def design_report(setup, out_dir, depth_range=None, design=None, window_size=(12
     from catadioptric import plots, views
     from catadioptric.setup import Setup, load_setup
     from catadioptric.simulate import encode_png
-    from raytrace.truth import mirror_rays
-    from xslit_fit.tiles import fit_tiles
 
     check_output_dir(out_dir)
     name = "setup"
@@ -385,10 +397,7 @@ def design_report(setup, out_dir, depth_range=None, design=None, window_size=(12
     camera, mirror = setup.camera.build(), setup.mirror.build()
     w, h = camera.resolution
     files: dict[str, bytes] = {}
-    rays = mirror_rays(camera, mirror)
-    hit = rays.hit.reshape(h, w)
-    tm = fit_tiles(rays.points.reshape(h, w, 3), rays.directions.reshape(h, w, 3), hit,
-                   tiles=_tiles_for((w, h)), max_rays_per_tile=400, progress=progress)
+    tm = _tile_map(camera, mirror, progress=progress)
     files["tile_map.png"] = plots.tile_map_plot(tm, (w, h))
 
     # Local XSlits along the middle tile row: their slits in 3D and their curves.
