@@ -30,16 +30,6 @@ def known_errors() -> tuple[type, ...]:
     return tuple(errors)
 
 
-class NotAvailable(Exception):
-    """A verb whose work is not built yet: exit 2."""
-
-
-def _not_available(verb: str):
-    def run(args):
-        raise NotAvailable(f"`catadioptric {verb}` is not available yet in version {__version__}")
-    return run
-
-
 class Progress:
     """A rich progress bar for library callbacks `progress(done, total)`; silent when not a terminal
     and for work shorter than a second."""
@@ -306,9 +296,6 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except NotAvailable as exc:
-        print(f"catadioptric: {exc}", file=sys.stderr)
-        return 2
     except known_errors() as exc:
         print(f"catadioptric: error: {exc}", file=sys.stderr)
         return 1

@@ -80,8 +80,3 @@ def test_simulate_writes_four_files_reproducibly(capsys, tmp_path, valid_setup, 
     # The rendered setup round-trips through the loader.
     from catadioptric.setup import load_setup
     assert load_setup(tmp_path / "a.toml") == load_setup(setup)
-
-
-def test_verbs_not_built_exit_2(capsys, tmp_path, valid_setup, write_setup):
-    code, _, err = run(capsys, "report", "x.json", "-o", str(tmp_path / "r"))
-    assert code == 2 and "not available yet" in err
