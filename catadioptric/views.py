@@ -67,10 +67,12 @@ class SceneModel:
 
 @dataclass(frozen=True)
 class View:
-    """A rendered view. image : (H, W, 3) uint8 RGB; projection : (4, 4) world → clip coordinates."""
+    """A rendered view. image : (H, W, 3) uint8 RGB; projection : (4, 4) world → clip coordinates;
+    eye : (3,) the viewpoint (world)."""
 
     image: np.ndarray
     projection: np.ndarray
+    eye: np.ndarray
 
     def project(self, points) -> np.ndarray:
         """Pixel positions (u, v) = (column, row) of world points : (N, 3) → (N, 2) float64."""
@@ -295,9 +297,10 @@ def render_view(model: SceneModel, kind: str = "perspective", window_size=(1200,
         vc = p.renderer.GetActiveCamera()
         mat = vc.GetCompositeProjectionTransformMatrix(p.renderer.GetTiledAspectRatio(), -1, 1)
         proj = np.array([[mat.GetElement(i, j) for j in range(4)] for i in range(4)])
+        eye = np.array(vc.GetPosition(), dtype=np.float64)
     finally:
         p.close()
-    return View(image=img, projection=proj)
+    return View(image=img, projection=proj, eye=eye)
 
 
 def _label_dir(mirror, camera) -> np.ndarray:
