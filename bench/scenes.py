@@ -35,12 +35,14 @@ class BenchScene:
     name : str, e.g. "s07"
     kind : "axis" (cubes face the mirror axis) or "turned" (turned 5–25° about the vertical)
     turn_deg : tuple of float, per cube, the turn from facing the axis (0 for "axis" scenes)
+    same_size : bool, every cube has the same edge length (the case of the `shape_prior` estimator)
     """
 
     name: str
     kind: str
     setup: Setup
     turn_deg: tuple
+    same_size: bool = False
 
     @property
     def key(self) -> str:
@@ -124,7 +126,7 @@ def _overlaps(a, b) -> bool:
     return not (a[2] + m < b[0] or b[2] + m < a[0] or a[3] + m < b[1] or b[3] + m < a[1])
 
 
-def _draw_scene(rng, index: int, kind: str, resolution) -> BenchScene | None:
+def _draw_scene(rng, index: int, kind: str, resolution, same_size: bool = False) -> BenchScene | None:
     from raytrace.scene import Cube
     w, h = resolution
     R = float(rng.uniform(0.075, 0.15))
@@ -140,9 +142,10 @@ def _draw_scene(rng, index: int, kind: str, resolution) -> BenchScene | None:
     n_cubes = int(rng.integers(3, 6))
     colours = _colors(rng, n_cubes)
     cubes, boxes, turns = [], [], []
+    common = float(round(rng.uniform(0.025, 0.06), 4))
     for k in range(n_cubes):
         for _attempt in range(300):
-            size = float(round(rng.uniform(0.02, 0.08), 4))
+            size = common if same_size else float(round(rng.uniform(0.02, 0.08), 4))
             dist = float(rng.uniform(2.0, 10.0) * R)
             az = math.radians(rng.uniform(-60.0, 60.0))
             y = float(rng.uniform(-0.25, 0.25) * height)
@@ -173,11 +176,13 @@ def _draw_scene(rng, index: int, kind: str, resolution) -> BenchScene | None:
     scene = SceneConfig(background=tuple([round(float(rng.uniform(0.55, 0.85)), 3)] * 3), ground=ground,
                         light_direction=light, ambient=round(float(rng.uniform(0.3, 0.45)), 3))
     setup = Setup(camera=camera, mirror=mirror, objects=tuple(cubes), scene=scene)
-    return BenchScene(name=f"s{index:02d}", kind=kind, setup=setup, turn_deg=tuple(turns))
+    return BenchScene(name=f"s{index:02d}", kind=kind, setup=setup, turn_deg=tuple(turns), same_size=same_size)
 
 
 def make_scenes(n: int = 24, seed: int = 5) -> list[BenchScene]:
     """`n` seeded scenes alternating "axis" / "turned"; each kind cycles through RESOLUTIONS (every fourth scene is 2048×1536).
+
+    Every third scene (index 2, 5, 8, ...) has cubes of one common size, for `shape_prior`.
 
     A draw whose cubes cannot all be
     placed is discarded and redrawn (with the same generator, so the list is reproducible).
@@ -189,7 +194,7 @@ def make_scenes(n: int = 24, seed: int = 5) -> list[BenchScene]:
         kind = "axis" if len(out) % 2 == 0 else "turned"
         j = len(out)
         res = RESOLUTIONS[(j // 2 + 2 * (j % 2)) % len(RESOLUTIONS)]
-        s = _draw_scene(rng, len(out), kind, res)
+        s = _draw_scene(rng, len(out), kind, res, same_size=j % 3 == 2)
         i += 1
         if s is not None:
             out.append(s)
