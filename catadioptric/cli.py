@@ -234,6 +234,24 @@ def _cmd_demo(args) -> int:
     return demo.run(args)
 
 
+def _cmd_depthmap(args) -> int:
+    from catadioptric import depthmap as dmap
+    if args.setup is None and (args.xslit is None or args.pitch is None):
+        raise CatadioptricError("depthmap: give --setup XSLIT.toml (an [xslit] table) or --xslit and --pitch")
+    table = dmap.load_xslit_table(args.setup) if args.setup else {}
+    if args.xslit is not None:
+        table.update(z1=args.xslit[0], z2=args.xslit[1], theta1_deg=args.xslit[2], theta2_deg=args.xslit[3])
+    if args.pitch is not None:
+        table["pitch"] = args.pitch
+    with Progress("dense depth") as bar:
+        summary = dmap.run_depthmap(args.image, table, args.output, method=args.method, lam=args.lam, progress=bar)
+    print(f"{summary['segments_with_depth']}/{summary['segments']} line segments with a DDS depth, "
+          f"{summary['superpixels']} superpixels, depth {summary['depth_min']:.4g}..{summary['depth_max']:.4g}")
+    print(summary["png"])
+    print(summary["npy"])
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="catadioptric",
@@ -287,6 +305,17 @@ def build_parser() -> argparse.ArgumentParser:
     dm.add_argument("-o", "--output", metavar="DIR", default=None,
                     help="folder for the demo's image, result and report (default ./catadioptric-demo)")
     dm.set_defaults(func=_cmd_demo)
+
+    dp = sub.add_parser("depthmap", help="dense depth of an XSlit image from line slopes (DDS) and an MRF")
+    dp.add_argument("image", metavar="IMAGE.png")
+    dp.add_argument("--setup", metavar="XSLIT.toml", help="a TOML file with an [xslit] table")
+    dp.add_argument("--xslit", type=float, nargs=4, metavar=("Z1", "Z2", "THETA1", "THETA2"),
+                    help="slit depths and angles (degrees), instead of or over --setup")
+    dp.add_argument("--pitch", type=float, nargs=2, metavar=("P1", "P2"), help="plane length per pixel along v1, v2")
+    dp.add_argument("--method", choices=("graphcut", "quadratic"), default="graphcut")
+    dp.add_argument("--lam", type=float, default=2.0, help="smoothness weight λ (default 2)")
+    dp.add_argument("-o", "--output", metavar="DEPTH.png", required=True)
+    dp.set_defaults(func=_cmd_depthmap)
     return p
 
 
