@@ -96,26 +96,71 @@ class _Geometry:
             self.colors = np.zeros((0, 3))
 
 
+def _object_t(geo: _Geometry, o, d, geom, prim) -> np.ndarray:
+    """Exact float64 ray parameter (N,) of hits `geom`, `prim` (N,) on cubes or the ground."""
+    t = np.full(len(o), np.inf)
+    is_c = (geom >= 0) & (geom < len(geo.cubes))
+    if np.any(is_c):
+        ci = np.flatnonzero(is_c)
+        nf = geo.face_n[geom[ci] * 6 + prim[ci] // 2]
+        oc, dc = np.take(o, ci, axis=0), np.take(d, ci, axis=0)
+        t[ci] = (geo.face_off[geom[ci] * 6 + prim[ci] // 2] - np.einsum("ij,ij->i", nf, oc)) / np.einsum("ij,ij->i", nf, dc)
+    is_g = geom == geo.ground_gid
+    if np.any(is_g):
+        gi = np.flatnonzero(is_g)
+        g = geo.scene.ground
+        t[gi] = ((g.point - np.take(o, gi, axis=0)) @ g.normal) / (np.take(d, gi, axis=0) @ g.normal)
+    return t
+
+
+def _refine_mirror(tracer, o, d, geom, prim, t_guess):
+    """Exact mirror hits of rays whose approximate first hit (`geom`, `prim`) is the mirror.
+
+    Rays that hit a mirror facet but not the exact surface are traced again without the
+    mirror (their `geom`, `prim` are updated in place). Returns (rows, t, points, normals), rays.
+    """
+    geo = tracer.geo
+    mi = np.flatnonzero(geom == geo.mirror_gid)
+    if len(mi) == 0:
+        return None, 0
+    tg = t_guess[mi] if t_guess is not None else np.zeros(len(mi))
+    m_t, m_hit, m_p, m_n = geo.scene.mirror.refine_hits(o[mi], d[mi], tg, prim[mi])
+    miss = mi[~m_hit]
+    rays = 0
+    if len(miss):  # hit a facet but not the exact surface: look behind the mirror
+        g2, p2, _ = tracer.first_hit(o[miss], d[miss], False)
+        rays = len(miss)
+        geom[miss], prim[miss] = g2, p2
+    return (mi[m_hit], m_t[m_hit], m_p[m_hit], m_n[m_hit]), rays
+
+
 class _EmbreeTracer:
-    """All triangles merged in one Embree mesh (a primitive-id lookup gives geometry and face)."""
+    """Cubes and ground merged in one Embree mesh (a primitive-id lookup gives geometry and face).
+
+    A `CylinderMirror` stays analytic (a float64 quadratic per ray, `CylinderMirror.first_hits`);
+    any other mirror is tessellated into the Embree mesh and its hits refined.
+    """
 
     def __init__(self, geo: _Geometry, mirror_sections: int = 720):
         self.geo = geo
         scene = geo.scene
+        self.analytic_mirror = isinstance(scene.mirror, CylinderMirror)
         parts = []  # (triangles (T, 3, 3), gid, local prim ids)
         for gid, cube in enumerate(geo.cubes):
-            m = cube.mesh()
-            parts.append((m.triangles, gid, np.arange(len(m.faces))))
+            parts.append((_cube_triangles(cube), gid, np.arange(12)))
         if scene.ground is not None:
             m = scene.ground.mesh()
             parts.append((m.triangles, geo.ground_gid, np.arange(len(m.faces))))
         n_obj = len(parts)
-        if scene.mirror is not None:
-            mm = scene.mirror.mesh() if not isinstance(scene.mirror, CylinderMirror) else scene.mirror.mesh(mirror_sections)
+        if scene.mirror is not None and not self.analytic_mirror:
+            mm = scene.mirror.mesh(mirror_sections)
             parts.append((mm.triangles, geo.mirror_gid, np.arange(len(mm.faces))))
         self.scenes = {}
         self.lookups = {}
-        for with_mirror, sel in ((True, parts), (False, parts[:n_obj])):
+        for with_mirror, sel in ((False, parts[:n_obj]), (True, parts)):
+            if with_mirror and len(sel) == n_obj:
+                self.scenes[True], self.lookups[True] = self.scenes[False], self.lookups.get(False)
+                continue
             if not sel:
                 self.scenes[with_mirror] = None
                 continue
@@ -126,7 +171,10 @@ class _EmbreeTracer:
             self.lookups[with_mirror] = (np.append(gids, -1), np.append(local, -1))
 
     def first_hit(self, o, d, with_mirror: bool):
-        """geom (N,) int (−1 none), prim (N,) int (local triangle index), t (N,) float64 or None."""
+        """geom (N,) int (−1 none), prim (N,) int (local triangle index), t (N,) float64 or None.
+
+        With an analytic mirror, mirror hits are not reported here (see `hits`).
+        """
         es = self.scenes[with_mirror]
         if es is None or len(o) == 0:
             return np.full(len(o), -1), np.full(len(o), -1), None
@@ -134,12 +182,46 @@ class _EmbreeTracer:
         gids, local = self.lookups[with_mirror]
         return gids[prim], local[prim], None
 
+    def hits(self, o, d, with_mirror: bool):
+        """First hits with exact mirror data: geom, prim (N,), mirror (rows, t, points, normals) or None, rays."""
+        if not self.analytic_mirror:
+            geom, prim, tg = self.first_hit(o, d, with_mirror)
+            mirror, extra = _refine_mirror(self, o, d, geom, prim, tg) if with_mirror else (None, 0)
+            return geom, prim, mirror, len(o) + extra
+        geom, prim, _ = self.first_hit(o, d, False)
+        if not with_mirror or self.geo.scene.mirror is None:
+            return geom, prim, None, len(o)
+        rows, t, p, n = self.geo.scene.mirror.first_hits(o, d)
+        both = np.flatnonzero(geom[rows] >= 0)
+        if len(both):  # an object and the mirror on the same ray: the nearer one wins
+            r = rows[both]
+            behind = both[_object_t(self.geo, o[r], d[r], geom[r], prim[r]) < t[both]]
+            if len(behind):
+                keep = np.ones(len(rows), dtype=bool)
+                keep[behind] = False
+                rows, t, p, n = rows[keep], t[keep], p[keep], n[keep]
+        geom[rows] = self.geo.mirror_gid
+        prim[rows] = 0
+        return geom, prim, (rows, t, p, n), len(o)
+
+
+def _cube_triangles(cube) -> np.ndarray:
+    """(12, 3, 3) float64 triangles of `cube`, as `Cube.mesh()` (triangles 2f, 2f+1 make face f)."""
+    c = np.stack([cube.face_corners(f) for f in range(6)])  # (6, 4, 3)
+    return np.stack([c[:, [0, 1, 2]], c[:, [0, 2, 3]]], axis=1).reshape(12, 3, 3)
+
 
 class _NumpyTracer:
     """Analytic twin: slab test per cube, plane test for the ground, analytic mirror."""
 
     def __init__(self, geo: _Geometry):
         self.geo = geo
+
+    def hits(self, o, d, with_mirror: bool):
+        """As `_EmbreeTracer.hits`."""
+        geom, prim, tg = self.first_hit(o, d, with_mirror)
+        mirror, extra = _refine_mirror(self, o, d, geom, prim, tg) if with_mirror else (None, 0)
+        return geom, prim, mirror, len(o) + extra
 
     def first_hit(self, o, d, with_mirror: bool):
         geo = self.geo
@@ -215,72 +297,62 @@ def trace_paths(tracer, origins, directions, bounces: int) -> dict:
     mirror_point = np.full((n, 3), np.nan)
     reflected_dir = np.full((n, 3), np.nan)
     key = np.zeros(n, dtype=np.int64)
-    idx = np.arange(n)
+    idx = None  # rows of the current rays in the outputs (None: all, in order)
     o = np.asarray(origins, dtype=np.float64)
     d = np.asarray(directions, dtype=np.float64)
-    travelled = np.zeros(n)
+    travelled = None
     rays = 0
     with_mirror = True
+    n_cubes = len(geo.cubes)
     for bounce in range(bounces + 1):
-        if len(idx) == 0:
+        if len(o) == 0:
             break
-        geom, prim, t_guess = tracer.first_hit(o, d, with_mirror)
-        rays += len(idx)
-        is_m = geom == geo.mirror_gid
-        m_t = m_p = m_n = None
-        if np.any(is_m):
-            mi = np.flatnonzero(is_m)
-            tg = t_guess[mi] if t_guess is not None else np.zeros(len(mi))
-            m_t, m_hit, m_p, m_n = scene.mirror.refine_hits(o[mi], d[mi], tg, prim[mi])
-            miss = mi[~m_hit]
-            if len(miss):  # hit a facet but not the exact surface: look behind the mirror
-                g2, p2, _ = tracer.first_hit(o[miss], d[miss], False)
-                rays += len(miss)
-                geom[miss], prim[miss] = g2, p2
-                is_m[miss] = False
-            keep = m_hit
-            mi, m_t, m_p, m_n = mi[keep], m_t[keep], m_p[keep], m_n[keep]
+        geom, prim, mirror, traced = tracer.hits(o, d, with_mirror)
+        rays += traced
 
         # --- objects: exact float64 hit on the face plane, Lambertian shading
-        is_c = (geom >= 0) & (geom < len(geo.cubes))
-        if np.any(is_c):
-            ci = np.flatnonzero(is_c)
-            fidx = geom[ci] * 6 + prim[ci] // 2
+        ci = np.flatnonzero((geom >= 0) & (geom < n_cubes))
+        if len(ci):
+            gc, fc = geom[ci], prim[ci] // 2
+            fidx = gc * 6 + fc
             nf = geo.face_n[fidx]
-            t = (geo.face_off[fidx] - np.einsum("ij,ij->i", nf, o[ci])) / np.einsum("ij,ij->i", nf, d[ci])
-            nf = np.where(np.einsum("ij,ij->i", nf, d[ci])[:, None] > 0, -nf, nf)
+            dn = np.einsum("ij,ij->i", nf, np.take(d, ci, axis=0))
+            t = (geo.face_off[fidx] - np.einsum("ij,ij->i", nf, np.take(o, ci, axis=0))) / dn
+            nf = np.where(dn[:, None] > 0, -nf, nf)
             lam = light.ambient + light.intensity * np.maximum(0.0, nf @ light.to_light)
-            out = idx[ci]
-            color[out] = geo.colors[geom[ci]] * lam[:, None]
-            object_id[out] = geom[ci]
-            distance[out] = travelled[ci] + t
-            key[out] = 4 + geom[ci] * 8 + prim[ci] // 2
-        is_g = geom == geo.ground_gid
-        if np.any(is_g):
-            gi = np.flatnonzero(is_g)
-            g = scene.ground
-            dn = d[gi] @ g.normal
-            t = ((g.point - o[gi]) @ g.normal) / dn
-            p = o[gi] + t[:, None] * d[gi]
-            parity = g.cell_parity(p)
-            ng = np.where(dn[:, None] > 0, -g.normal, g.normal)
-            lam = light.ambient + light.intensity * np.maximum(0.0, ng @ light.to_light)
-            albedo = np.where(parity[:, None] == 0, g.colors[0], g.colors[1])
-            out = idx[gi]
-            color[out] = albedo * lam[:, None]
-            distance[out] = travelled[gi] + t
-            key[out] = 4 + len(geo.cubes) * 8 + parity
-        bg = geom == -1
-        if np.any(bg):
-            out = idx[bg]
+            out = ci if idx is None else idx[ci]
+            color[out] = geo.colors[gc] * lam[:, None]
+            object_id[out] = gc
+            distance[out] = t if travelled is None else travelled[ci] + t
+            key[out] = 4 + gc * 8 + fc
+        if scene.ground is not None:
+            gi = np.flatnonzero(geom == geo.ground_gid)
+            if len(gi):
+                g = scene.ground
+                og, dg = np.take(o, gi, axis=0), np.take(d, gi, axis=0)
+                dn = dg @ g.normal
+                t = ((g.point - og) @ g.normal) / dn
+                p = og + t[:, None] * dg
+                parity = g.cell_parity(p)
+                ng = np.where(dn[:, None] > 0, -g.normal, g.normal)
+                lam = light.ambient + light.intensity * np.maximum(0.0, ng @ light.to_light)
+                albedo = np.where(parity[:, None] == 0, g.colors[0], g.colors[1])
+                out = gi if idx is None else idx[gi]
+                color[out] = albedo * lam[:, None]
+                distance[out] = t if travelled is None else travelled[gi] + t
+                key[out] = 4 + n_cubes * 8 + parity
+        bg = np.flatnonzero(geom == -1)
+        if len(bg):
+            out = bg if idx is None else idx[bg]
             color[out] = scene.background
             key[out] = 1
 
         # --- mirror: record the first reflection, continue the reflected rays
-        if m_t is None or len(mi) == 0:
+        if mirror is None or len(mirror[0]) == 0:
             break
-        out = idx[mi]
-        r = reflect(d[mi], m_n)
+        mi, m_t, m_p, m_n = mirror
+        out = mi if idx is None else idx[mi]
+        r = reflect(np.take(d, mi, axis=0), m_n)
         if bounce == 0:
             mirror_point[out] = m_p
             reflected_dir[out] = r
@@ -294,7 +366,7 @@ def trace_paths(tracer, origins, directions, bounces: int) -> dict:
         with_mirror = not (isinstance(scene.mirror, CylinderMirror) and np.all(side > 0))
         o = m_p + (REFLECT_OFFSET * side)[:, None] * m_n
         d = r
-        travelled = travelled[mi] + m_t
+        travelled = m_t if travelled is None else travelled[mi] + m_t
         idx = out
     key = key * 2 + via
     return {
