@@ -116,21 +116,30 @@ def load_input(input_path, setup_path=None, method=None, progress=None) -> Repor
 def xslit_frame_of(local_xslit: dict):
     """(origin (3,), e_z (3,), z1, z2) of a cube's `local_xslit` result entry, or None.
 
-    The slits of a result lie at origin + z_i·e_z (docs/CONVENTIONS.md), so
-    e_z = (p2 − p1)/(z2 − z1) and origin = p1 − z1·e_z.
+    The virtual image plane is parallel to both slits, so e_z = ±unit(d1 × d2), oriented so that
+    the slits lie at signed distances z1, z2 from the plane (docs/CONVENTIONS.md); each slit's point
+    may be anywhere on its line. The origin is where the slits' projections onto the plane cross.
     """
     try:
         z1, z2 = float(local_xslit["z1"]), float(local_xslit["z2"])
-        p1, p2 = (np.asarray(s["point"], dtype=np.float64) for s in local_xslit["slits"][:2])
+        (p1, d1), (p2, d2) = ((np.asarray(s["point"], dtype=np.float64), np.asarray(s["direction"], dtype=np.float64))
+                              for s in local_xslit["slits"][:2])
     except (KeyError, TypeError, ValueError, IndexError):
         return None
-    if not (np.isfinite(z1) and np.isfinite(z2)) or z1 == z2 or z1 == 0 or z2 == 0:
-        return None
-    n = (p2 - p1) / (z2 - z1)
-    if not np.all(np.isfinite(n)) or abs(np.linalg.norm(n) - 1) > 1e-3:
+    n = np.cross(d1, d2)
+    if not (np.all(np.isfinite(n)) and np.isfinite(z1) and np.isfinite(z2)) or np.linalg.norm(n) < 1e-9 \
+            or z1 == z2 or z1 == 0 or z2 == 0 or p1.shape != (3,) or p2.shape != (3,):
         return None
     n /= np.linalg.norm(n)
-    return p1 - z1 * n, n, z1, z2
+    if (p2 - p1) @ n * (z2 - z1) < 0:
+        n = -n
+    c1, c2 = p1 @ n - z1, p2 @ n - z2  # the plane is {x : x·n = c}
+    if abs(c1 - c2) > 1e-6 + 1e-3 * abs(z2 - z1):
+        return None  # the slit depths do not match the slits' positions
+    c = 0.5 * (c1 + c2)
+    q1, q2 = p1 - (p1 @ n - c) * n, p2 - (p2 @ n - c) * n  # projections onto the plane
+    t = np.linalg.lstsq(np.column_stack([d1, -d2]), q2 - q1, rcond=None)[0]
+    return q1 + t[0] * d1, n, z1, z2
 
 
 def _overlay_source(inp: ReportInput, hit_mask: np.ndarray):
@@ -277,6 +286,8 @@ def build_report(inp: ReportInput, window_size=(1200, 800), progress=None) -> di
     for i, (c, t) in enumerate(zip(cubes, matches)):
         fr = xslit_frame_of(c.get("local_xslit") or {})
         if fr is None:
+            inp.notes.append(f"Cube #{i} has no usable local XSlit in the result: it is not in the "
+                             "aspect-ratio plot.")
             continue
         origin, n, z1, z2 = fr
         z = float((np.asarray(c["front_face_center"]) - origin) @ n)

@@ -258,12 +258,17 @@ def test_xslit_frame_of_recovers_a_known_frame():
     n /= np.linalg.norm(n)
     origin, z1, z2 = rng.normal(size=3), -0.04, -0.5
     d1 = np.cross(n, rng.normal(size=3))
-    lx = {"z1": z1, "z2": z2, "slits": [{"point": (origin + z1 * n).tolist(), "direction": d1.tolist()},
-                                        {"point": (origin + z2 * n).tolist(), "direction": np.cross(n, d1).tolist()}]}
+    d2 = np.cross(n, d1) + 0.3 * d1  # slits need not be perpendicular
+    # Each slit's point anywhere on its line, as a fit reports it.
+    p1, p2 = origin + z1 * n + 0.7 * d1, origin + z2 * n - 1.3 * d2
+    lx = {"z1": z1, "z2": z2, "slits": [{"point": p1.tolist(), "direction": d1.tolist()},
+                                        {"point": p2.tolist(), "direction": d2.tolist()}]}
     o, e, a, b = xslit_frame_of(lx)
     np.testing.assert_allclose(o, origin, atol=1e-12)
     np.testing.assert_allclose(e, n, atol=1e-12)
     assert (a, b) == (z1, z2)
+    # Slit depths that contradict the slits' positions, or missing keys: no frame.
+    assert xslit_frame_of(dict(lx, z2=-0.6)) is None
     assert xslit_frame_of({}) is None
 
 
