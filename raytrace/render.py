@@ -12,6 +12,8 @@ is flat-shaded so the centre sample is the pixel's exact average.
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import mmap
 import multiprocessing
 import os
@@ -476,6 +478,48 @@ def _run_jobs(func, ranges, pool, progress, done, total):
     return rays, done
 
 
+def _openblas_thread_controls() -> list:
+    """(get, set) ctypes functions of every OpenBLAS library loaded in this process (Linux; else [])."""
+    try:
+        with open("/proc/self/maps") as f:
+            paths = sorted({line.split()[-1] for line in f if "openblas" in line.lower() and ".so" in line})
+    except OSError:
+        return []
+    controls = []
+    for path in paths:
+        try:
+            lib = ctypes.CDLL(path)
+        except OSError:
+            continue
+        for name in ("scipy_openblas_{}_num_threads64_", "scipy_openblas_{}_num_threads", "openblas_{}_num_threads64_",
+                     "openblas_{}_num_threads"):
+            get, put = getattr(lib, name.format("get"), None), getattr(lib, name.format("set"), None)
+            if get is not None and put is not None:
+                get.restype, get.argtypes = ctypes.c_int, []
+                put.restype, put.argtypes = None, [ctypes.c_int]
+                controls.append((get, put))
+                break
+    return controls
+
+
+@contextlib.contextmanager
+def _single_threaded_blas():
+    """Run the block with one OpenBLAS thread (restored afterwards).
+
+    The renderer's matrix products are tiny ((N, 3) @ (3, 3)); with OpenBLAS's own threads on
+    top of the worker processes they spin for the cores and run 10–100× slower on a busy machine.
+    """
+    controls = _openblas_thread_controls()
+    old = [get() for get, _ in controls]
+    for _, put in controls:
+        put(1)
+    try:
+        yield
+    finally:
+        for (_, put), n in zip(controls, old):
+            put(n)
+
+
 def _check_int(value, name, lo):
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
         raise RaytraceError(f"{name}: expected an integer >= {lo}, got {value!r}")
@@ -533,32 +577,37 @@ def render(
         "reflected_dir": _shared((npx, 3), np.float64),
         "key": _shared((npx,), np.int64),
     }
+    # Everything the workers read exists before they fork (one pool for both passes); the
+    # edge pixels found after pass 1 go to shared memory.
+    edge_index = _shared((npx,), np.int64)
     _STATE.clear()
-    _STATE.update(scene=scene, camera=camera, bounces=bounces, backend=backend, out=out)
+    _STATE.update(scene=scene, camera=camera, bounces=bounces, backend=backend, out=out,
+                  edge_index=edge_index, offsets=sample_offsets(spp, seed))
     tiles = [(a, min(a + TILE_PIXELS, npx)) for a in range(0, npx, TILE_PIXELS)]
     parallel = workers > 1 and npx >= MIN_PARALLEL_PIXELS
     pool = None
     try:
-        if parallel:
-            pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("fork"))
-        # Pass 1: pixel centres. The total is re-estimated once the edge count is known.
-        rays, done = _run_jobs(_centre_tile, tiles, pool, progress, 0, len(tiles) + 1)
-        key = out["key"].reshape(h, w)
-        if spp == 1:
-            samp = np.zeros((h, w), dtype=bool)
-        else:
-            samp = _edges(key) if adaptive else np.ones((h, w), dtype=bool)
-        edge_index = np.flatnonzero(samp.reshape(-1))
-        chunks = [(a, min(a + CHUNK_PIXELS, len(edge_index))) for a in range(0, len(edge_index), CHUNK_PIXELS)]
-        if chunks:
-            if pool is not None:  # workers forked before these existed: restart them
-                pool.shutdown()
-                pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("fork"))
-            _STATE.update(edge_index=edge_index, offsets=sample_offsets(spp, seed))
-            more, done = _run_jobs(_sample_chunk, chunks, pool, progress, done, len(tiles) + len(chunks))
-            rays += more
-        elif progress is not None:
-            progress(len(tiles) + 1, len(tiles) + 1)
+        with _single_threaded_blas():
+            if parallel:
+                pool = ProcessPoolExecutor(max_workers=min(workers, len(tiles)),
+                                           mp_context=multiprocessing.get_context("fork"))
+            # Pass 1: pixel centres. The total is re-estimated once the edge count is known.
+            rays, done = _run_jobs(_centre_tile, tiles, pool, progress, 0, len(tiles) + 1)
+            key = out["key"].reshape(h, w)
+            if spp == 1:
+                samp = np.zeros((h, w), dtype=bool)
+            else:
+                samp = _edges(key) if adaptive else np.ones((h, w), dtype=bool)
+            found = np.flatnonzero(samp.reshape(-1))
+            edge_index[: len(found)] = found
+            chunks = [(a, min(a + CHUNK_PIXELS, len(found))) for a in range(0, len(found), CHUNK_PIXELS)]
+            if chunks:
+                # one chunk: trace it here rather than pay a round trip to a worker
+                more, done = _run_jobs(_sample_chunk, chunks, pool if len(chunks) > 1 else None, progress, done,
+                                       len(tiles) + len(chunks))
+                rays += more
+            elif progress is not None:
+                progress(len(tiles) + 1, len(tiles) + 1)
     finally:
         if pool is not None:
             pool.shutdown()
