@@ -10,7 +10,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import trimesh
 
 from ._embree import build_scene, first_hits
 from ._validate import as_positive, as_rays, as_unit, as_vector
@@ -228,6 +227,8 @@ class CylinderMirror:
         """
         if int(sections) < 3:
             raise RaytraceError(f"sections: expected an integer >= 3, got {sections!r}")
+        import trimesh  # imported on use: it costs ~0.5 s of start-up and rendering never needs it
+
         n = int(sections)
         e1, e2, a = self.frame
         phi = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
@@ -249,6 +250,8 @@ class MeshMirror:
     """
 
     def __init__(self, mesh: trimesh.Trimesh):
+        import trimesh
+
         if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
             raise RaytraceError("mesh: expected a trimesh.Trimesh with at least one face")
         self._mesh = mesh
@@ -270,6 +273,8 @@ class MeshMirror:
         with np.errstate(divide="ignore", invalid="ignore"):
             t = np.einsum("ij,ij->i", tri[:, 0] - o, ng) / np.einsum("ij,ij->i", d, ng)
         p = o + t[:, None] * d
+        import trimesh
+
         bary = trimesh.triangles.points_to_barycentric(tri, p) if len(p) else np.zeros((0, 3))
         vn = self._vertex_normals[self._faces[prim]]
         n = np.einsum("ij,ijk->ik", bary, vn)

@@ -151,8 +151,7 @@ class _EmbreeTracer:
         for gid, cube in enumerate(geo.cubes):
             parts.append((_cube_triangles(cube), gid, np.arange(12)))
         if scene.ground is not None:
-            m = scene.ground.mesh()
-            parts.append((m.triangles, geo.ground_gid, np.arange(len(m.faces))))
+            parts.append((_ground_triangles(scene.ground), geo.ground_gid, np.arange(2)))
         n_obj = len(parts)
         if scene.mirror is not None and not self.analytic_mirror:
             mm = scene.mirror.mesh(mirror_sections)
@@ -211,6 +210,14 @@ def _cube_triangles(cube) -> np.ndarray:
     """(12, 3, 3) float64 triangles of `cube`, as `Cube.mesh()` (triangles 2f, 2f+1 make face f)."""
     c = np.stack([cube.face_corners(f) for f in range(6)])  # (6, 4, 3)
     return np.stack([c[:, [0, 1, 2]], c[:, [0, 2, 3]]], axis=1).reshape(12, 3, 3)
+
+
+def _ground_triangles(ground) -> np.ndarray:
+    """(2, 3, 3) float64 triangles of `ground`, as `GroundPlane.mesh()`."""
+    e1, e2 = ground.basis * (ground.extent / 2)
+    p = ground.point
+    v = np.array([p - e1 - e2, p + e1 - e2, p + e1 + e2, p - e1 + e2])
+    return v[[[0, 1, 2], [0, 2, 3]]]
 
 
 class _NumpyTracer:
