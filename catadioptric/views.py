@@ -150,7 +150,7 @@ def _fan_pixels(camera, mirror, rows: int, cols: int) -> np.ndarray:
 
 
 def scene_model(camera, mirror, cubes=(), truth=(), slits=(), reach: float | None = None,
-                fan=(5, 9), rings=None) -> SceneModel:
+                fan=(4, 7), rings=None) -> SceneModel:
     """Build what a view draws.
 
     Parameters
@@ -238,7 +238,7 @@ def render_view(model: SceneModel, kind: str = "perspective", window_size=(1200,
         p.add_mesh(pv.Cylinder(center=m.center, direction=axis, radius=m.radius, height=m.height,
                                capping=kind == "top", resolution=180),
                    color=MIRROR_COLOR, smooth_shading=True, specular=0.2, ambient=0.35, diffuse=0.65,
-                   opacity=0.55 if kind == "perspective" else 1.0)
+                   opacity=0.45 if kind == "perspective" else 1.0)
         if len(model.incident):
             p.add_mesh(_segments(pv, model.incident), color=INCIDENT_COLOR, line_width=2)
             p.add_mesh(_segments(pv, model.reflected), color=REFLECTED_COLOR, line_width=1.5, opacity=0.6)
@@ -247,8 +247,10 @@ def render_view(model: SceneModel, kind: str = "perspective", window_size=(1200,
                                           [[f[i], f[1 + i % 4]] for i in range(1, 5)])),
                    color=CAMERA_COLOR, line_width=2)
         p.add_mesh(pv.Sphere(radius=0.012, center=cam.position), color=CAMERA_COLOR)
-        for seg, k in model.slits:
-            p.add_mesh(_segments(pv, np.asarray(seg)[None]), color=SLIT_COLORS[k], line_width=5)
+        for seg, k in model.slits:  # tubes, so that they show through the half-transparent mirror
+            a, b = np.asarray(seg, dtype=np.float64)
+            p.add_mesh(pv.Tube(pointa=a, pointb=b, radius=0.005, resolution=1, n_sides=12),
+                       color=SLIT_COLORS[k], ambient=0.4)
         for c in model.cubes:
             p.add_mesh(_hex_grid(pv, c.vertices), color=c.color, ambient=0.3, diffuse=0.7)
         for v in model.truth:
