@@ -224,9 +224,9 @@ def _ring(mirror, radius: float, n: int = 180) -> np.ndarray:
 def render_view(model: SceneModel, kind: str = "perspective", window_size=(1200, 800)) -> View:
     """Render the model off-screen; kind is "perspective" (oblique) or "top" (along the mirror axis)."""
     import pyvista as pv
+    from catadioptric.errors import CatadioptricError
     if kind not in ("perspective", "top"):
-        raise ValueError(f"kind: expected 'perspective' or 'top', got {kind!r}")
-    pv.OFF_SCREEN = True
+        raise CatadioptricError(f"kind: expected 'perspective' or 'top', got {kind!r}")
     _quiet_vtk()
     m, cam = model.mirror, model.camera
     axis = np.asarray(m.axis, dtype=np.float64)

@@ -347,10 +347,25 @@ def test_refuses_a_non_empty_folder_that_is_not_a_report(sim, tmp_path, capsys):
     assert [p.name for p in out.iterdir()] == ["notes.txt"]
 
 
-def test_failure_while_writing_leaves_no_folder(sim, tmp_path, monkeypatch):
+def test_refuses_a_missing_parent_folder_and_a_file_as_output(sim, tmp_path, capsys):
+    assert main(["report", str(sim / "s.png"), "-o", str(tmp_path / "no" / "rep")]) == 1
+    assert "does not exist" in capsys.readouterr().err and not (tmp_path / "no").exists()
+    (tmp_path / "f").write_text("x")
+    assert main(["report", str(sim / "s.png"), "-o", str(tmp_path / "f")]) == 1
+    assert "got a file" in capsys.readouterr().err and (tmp_path / "f").read_text() == "x"
+
+
+def test_render_view_rejects_an_unknown_kind(small_scene):
+    from catadioptric import views
+    from catadioptric.errors import CatadioptricError
+    camera, mirror, _ = small_scene
+    with pytest.raises(CatadioptricError, match="kind: expected"):
+        views.render_view(views.scene_model(camera, mirror), "side", WINDOW)
+
+
+def test_failure_while_writing_leaves_no_folder(tmp_path, monkeypatch):
     from catadioptric import report
-    inp = report.load_input(sim / "s.png")
-    files = report.build_report(inp, WINDOW)
+    files = {"index.html": b"<html></html>", "a.png": b"1", "b.png": b"2", "c.png": b"3"}
     calls = {"n": 0}
     real = Path.write_bytes
 
