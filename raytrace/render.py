@@ -70,8 +70,13 @@ class Render:
 def linear_to_srgb8(image) -> np.ndarray:
     """Linear RGB in [0, 1] (H, W, 3) float → sRGB-encoded (H, W, 3) uint8 (clipped, rounded)."""
     x = np.clip(np.asarray(image, dtype=np.float64), 0.0, 1.0)
-    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
-    return np.round(s * 255.0).astype(np.uint8)
+    s = np.power(x, 1 / 2.4)  # in place from here on: the same arithmetic with no temporaries
+    s *= 1.055
+    s -= 0.055
+    low = x <= 0.0031308
+    np.multiply(x, 12.92, out=s, where=low)
+    s *= 255.0
+    return np.round(s, out=s).astype(np.uint8)
 
 
 # ---------------------------------------------------------------------------------------
@@ -295,17 +300,39 @@ def trace_paths(tracer, origins, directions, bounces: int) -> dict:
     distance (N,) float64, mirror_point (N, 3), reflected_dir (N, 3) float64 (first
     reflection, NaN if none), key (N,) int64 (surface identity for edge detection), rays (int).
     """
+    n = len(origins)
+    res = {
+        "color": np.empty((n, 3)),
+        "object_id": np.empty(n, dtype=np.int32),
+        "via_mirror": np.empty(n, dtype=bool),
+        "distance": np.empty(n),
+        "mirror_point": np.empty((n, 3)),
+        "reflected_dir": np.empty((n, 3)),
+        "key": np.empty(n, dtype=np.int64),
+    }
+    res["rays"] = _trace_into(tracer, origins, directions, bounces, res)
+    return res
+
+
+def _trace_into(tracer, origins, directions, bounces: int, dest: dict) -> int:
+    """`trace_paths` writing into the (N, ...) arrays of `dest` (its keys but "rays"); returns the rays traced.
+
+    Without "object_id" in `dest` only "color" is written (the supersampling pass).
+    """
     geo = tracer.geo
     scene = geo.scene
     light = scene.light
-    n = len(origins)
-    color = np.empty((n, 3))
-    object_id = np.full(n, -1, dtype=np.int32)
-    via = np.zeros(n, dtype=bool)
-    distance = np.full(n, np.inf)
-    mirror_point = np.full((n, 3), np.nan)
-    reflected_dir = np.full((n, 3), np.nan)
-    key = np.zeros(n, dtype=np.int64)
+    color = dest["color"]
+    truth = "object_id" in dest
+    if truth:
+        object_id, via, distance = dest["object_id"], dest["via_mirror"], dest["distance"]
+        mirror_point, reflected_dir, key = dest["mirror_point"], dest["reflected_dir"], dest["key"]
+        object_id.fill(-1)
+        via.fill(False)
+        distance.fill(np.inf)
+        mirror_point.fill(np.nan)
+        reflected_dir.fill(np.nan)
+        key.fill(0)
     idx = None  # rows of the current rays in the outputs (None: all, in order)
     o = np.asarray(origins, dtype=np.float64)
     d = np.asarray(directions, dtype=np.float64)
@@ -331,9 +358,10 @@ def trace_paths(tracer, origins, directions, bounces: int) -> dict:
             lam = light.ambient + light.intensity * np.maximum(0.0, nf @ light.to_light)
             out = ci if idx is None else idx[ci]
             color[out] = geo.colors[gc] * lam[:, None]
-            object_id[out] = gc
-            distance[out] = t if travelled is None else travelled[ci] + t
-            key[out] = 4 + gc * 8 + fc
+            if truth:
+                object_id[out] = gc
+                distance[out] = t if travelled is None else travelled[ci] + t
+                key[out] = 4 + gc * 8 + fc
         if scene.ground is not None:
             gi = np.flatnonzero(geom == geo.ground_gid)
             if len(gi):
@@ -348,13 +376,15 @@ def trace_paths(tracer, origins, directions, bounces: int) -> dict:
                 albedo = np.where(parity[:, None] == 0, g.colors[0], g.colors[1])
                 out = gi if idx is None else idx[gi]
                 color[out] = albedo * lam[:, None]
-                distance[out] = t if travelled is None else travelled[gi] + t
-                key[out] = 4 + n_cubes * 8 + parity
+                if truth:
+                    distance[out] = t if travelled is None else travelled[gi] + t
+                    key[out] = 4 + n_cubes * 8 + parity
         bg = np.flatnonzero(geom == -1)
         if len(bg):
             out = bg if idx is None else idx[bg]
             color[out] = scene.background
-            key[out] = 1
+            if truth:
+                key[out] = 1
 
         # --- mirror: record the first reflection, continue the reflected rays
         if mirror is None or len(mirror[0]) == 0:
@@ -362,13 +392,15 @@ def trace_paths(tracer, origins, directions, bounces: int) -> dict:
         mi, m_t, m_p, m_n = mirror
         out = mi if idx is None else idx[mi]
         r = reflect(np.take(d, mi, axis=0), m_n)
-        if bounce == 0:
-            mirror_point[out] = m_p
-            reflected_dir[out] = r
-        via[out] = True
+        if truth:
+            if bounce == 0:
+                mirror_point[out] = m_p
+                reflected_dir[out] = r
+            via[out] = True
         if bounce == bounces:  # out of bounces: black, no object
             color[out] = 0.0
-            key[out] = 2
+            if truth:
+                key[out] = 2
             break
         side = np.sign(np.einsum("ij,ij->i", r, m_n))
         # a ray leaving the outside of a convex cylinder cannot meet it again
@@ -377,17 +409,10 @@ def trace_paths(tracer, origins, directions, bounces: int) -> dict:
         d = r
         travelled = m_t if travelled is None else travelled[mi] + m_t
         idx = out
-    key = key * 2 + via
-    return {
-        "color": color,
-        "object_id": object_id,
-        "via_mirror": via,
-        "distance": distance,
-        "mirror_point": mirror_point,
-        "reflected_dir": reflected_dir,
-        "key": key,
-        "rays": rays,
-    }
+    if truth:
+        key *= 2
+        key += via
+    return rays
 
 
 # ---------------------------------------------------------------------------------------
@@ -418,16 +443,11 @@ def _centre_tile(start: int, stop: int) -> int:
     v, u = np.divmod(flat, w)
     px = np.stack([u, v], axis=1).astype(np.float64)
     o, d = cam.rays(px)
-    res = trace_paths(_tracer(), o, d, st["bounces"])
     out = st["out"]
-    out["image"][start:stop] = res["color"]
-    out["object_id"][start:stop] = res["object_id"]
-    out["via_mirror"][start:stop] = res["via_mirror"]
-    out["ray_distance"][start:stop] = res["distance"]
-    out["mirror_point"][start:stop] = res["mirror_point"]
-    out["reflected_dir"][start:stop] = res["reflected_dir"]
-    out["key"][start:stop] = res["key"]
-    return res["rays"]
+    dest = {"color": out["image"][start:stop], "distance": out["ray_distance"][start:stop]}
+    for name in ("object_id", "via_mirror", "mirror_point", "reflected_dir", "key"):
+        dest[name] = out[name][start:stop]
+    return _trace_into(_tracer(), o, d, st["bounces"], dest)
 
 
 def _sample_chunk(start: int, stop: int) -> int:
@@ -441,9 +461,10 @@ def _sample_chunk(start: int, stop: int) -> int:
     centres = np.stack([u, v], axis=1).astype(np.float64)
     px = (centres[:, None, :] + offsets[None, :, :]).reshape(-1, 2)
     o, d = cam.rays(px)
-    res = trace_paths(_tracer(), o, d, st["bounces"])
-    st["out"]["image"][flat] = res["color"].reshape(len(flat), len(offsets), 3).mean(axis=1)
-    return res["rays"]
+    color = np.empty((len(px), 3))
+    rays = _trace_into(_tracer(), o, d, st["bounces"], {"color": color})
+    st["out"]["image"][flat] = color.reshape(len(flat), len(offsets), 3).mean(axis=1)
+    return rays
 
 
 def _shared(shape, dtype) -> np.ndarray:
@@ -582,7 +603,7 @@ def render(
         "ray_distance": _shared((npx,), np.float32),
         "mirror_point": _shared((npx, 3), np.float64),
         "reflected_dir": _shared((npx, 3), np.float64),
-        "key": _shared((npx,), np.int64),
+        "key": _shared((npx,), np.int32),
     }
     # Everything the workers read exists before they fork (one pool for both passes); the
     # edge pixels found after pass 1 go to shared memory.
