@@ -44,6 +44,13 @@ RayFunction = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 SIDES = ("left", "right", "top", "bottom")
 
+EDGE_BIAS_PX = 0.05
+"""Systematic edge-location uncertainty of one whole side, in pixels (σ of a common offset of all its
+points). Sub-pixel edge points scatter by only 0.01–0.02 px about their fitted side on our renders,
+but whole sides sit 0.03–0.15 px off the truth (shading of the neighbouring face, anti-aliasing).
+Treating the points as independent would make σ ten times too small; this per-side term keeps the
+first-order uncertainty honest."""
+
 
 @dataclass(frozen=True)
 class FaceMeasurement:
@@ -160,9 +167,10 @@ def _intersect(c1, d1, c2, d2) -> np.ndarray:
 
 def _face_in_kappa(local: LocalXSlit, rays: RayFunction, sides_px) -> dict:
     """Side lines and corners of the face in κ coordinates of the local XSlit."""
-    lines, res, counts = [], [], []
+    lines, res, counts, all_px, all_k = [], [], [], [], []
     for pts in sides_px:
-        p, d = rays(np.asarray(pts, dtype=np.float64))
+        pts = np.asarray(pts, dtype=np.float64)
+        p, d = rays(pts)
         ok = np.all(np.isfinite(p), axis=1)
         if ok.sum() < 3:
             raise DepthError("sides_px: a side has fewer than 3 edge points on the mirror")
@@ -171,11 +179,22 @@ def _face_in_kappa(local: LocalXSlit, rays: RayFunction, sides_px) -> dict:
         lines.append((c, u))
         res.append(rms)
         counts.append(int(ok.sum()))
+        all_px.append(pts[ok])
+        all_k.append(k)
+    # Local affine map pixels → κ over the outline: κ per pixel, for the per-side bias term.
+    px, kk = np.concatenate(all_px), np.concatenate(all_k)
+    design = np.column_stack([px - px.mean(axis=0), np.ones(len(px))])
+    kappa_per_px = np.linalg.lstsq(design, kk, rcond=None)[0][:2].T  # (2, 2): dκ/d(u, v)
     (cl, ul), (cr, ur), (ct, ut), (cb, ub) = lines
     corners = np.array([_intersect(cl, ul, ct, ut), _intersect(cr, ur, ct, ut),
                         _intersect(cr, ur, cb, ub), _intersect(cl, ul, cb, ub)])
+    # Per side: how far (in κ, across the side) a 1 px shift of the edge in the image moves it.
+    shift = []
+    for (c, u), n_img in zip(lines, ([1.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.0, 1.0])):
+        dk = kappa_per_px @ np.asarray(n_img)
+        shift.append(abs(dk[0] * u[1] - dk[1] * u[0]))
     return {"corners": corners, "rms": np.array(res), "counts": np.array(counts),
-            "dirs": np.array([ul, ur, ut, ub])}
+            "dirs": np.array([ul, ur, ut, ub]), "kappa_per_px_across": np.array(shift)}
 
 
 def _extents(corners: np.ndarray, vertical: int) -> tuple[float, float]:
@@ -190,8 +209,9 @@ def _kappa_extents(kap: dict, vertical: int) -> tuple[float, float, float, float
     """Extents (κ along v1, κ along v2) of the face and their σ from the side-line residuals."""
     ext_v, ext_h = _extents(kap["corners"], vertical)
     k1, k2 = (ext_v, ext_h) if vertical == 0 else (ext_h, ext_v)
-    # σ of each extent: two sides, each offset σ ≈ rms/√M.
-    side_sigma = kap["rms"] / np.sqrt(np.maximum(kap["counts"], 1))
+    # σ of each extent: two sides, each offset by the fit noise rms/√M and the per-side bias.
+    side_sigma = np.hypot(kap["rms"] / np.sqrt(np.maximum(kap["counts"], 1)),
+                          EDGE_BIAS_PX * kap["kappa_per_px_across"])
     sig_v = np.hypot(side_sigma[0], side_sigma[1])
     sig_h = np.hypot(side_sigma[2], side_sigma[3])
     s1, s2 = (sig_v, sig_h) if vertical == 0 else (sig_h, sig_v)
@@ -384,12 +404,16 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     center = c - normal * s / 2.0  # the normal points toward the mirror; the cube lies behind the face
     r = sol.fun
     dof = max(len(r) - 7, 1)
-    sigma2 = float(r @ r) / dof
+    sigma2 = float(r @ r) / dof  # point scatter (pixels²)
     j = sol.jac
-    try:
-        cov = np.linalg.pinv(j.T @ j) * sigma2
-    except np.linalg.LinAlgError:
-        cov = np.full((7, 7), np.nan)
+    # Sandwich covariance with Σ = σ²·I + EDGE_BIAS_PX²·(ones within each side): a common offset
+    # of a whole side is not averaged away by its many points.
+    jtj_inv = np.linalg.pinv(j.T @ j)
+    meat = sigma2 * (j.T @ j)
+    for side in range(4):
+        g = j[sid == side].sum(axis=0)
+        meat += EDGE_BIAS_PX ** 2 * np.outer(g, g)
+    cov = jtj_inv @ meat @ jtj_inv
     # Propagate to the centre, size and z numerically.
     def derived(x):
         rr, cc, ss = unpack(x)
