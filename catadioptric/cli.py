@@ -139,6 +139,9 @@ def _cmd_design(args) -> int:
         raise CatadioptricError(f"{args.plot}: --plot: expected an output file name ending in .png")
     if args.cube_size <= 0:
         raise CatadioptricError(f"--cube-size: expected a positive edge length in metres, got {args.cube_size}")
+    if args.report:
+        from catadioptric.report import check_output_dir
+        check_output_dir(args.report)  # before any work: a bad folder must not leave a written --plot
     setup = load_setup(args.setup)
     if args.optimize:
         if args.depth_range is None:
@@ -180,6 +183,10 @@ def _cmd_design(args) -> int:
         with OutputSet() as out:
             out.write_bytes(args.plot, buf.getvalue())
         print(args.plot)
+    if args.report:
+        from catadioptric.report import design_report
+        with Progress("writing the design report") as bar:
+            print(design_report(setup, args.report, depth_range=args.depth_range, design=des, progress=bar))
     return 0
 
 
@@ -282,6 +289,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="search camera distance and mirror radius (±50 %%) for the least expected depth error; prints TOML")
     d.add_argument("--cube-size", type=float, default=0.04, metavar="S", help="cube edge for the expected error (m)")
     d.add_argument("--tiles", type=int, metavar="N", help="also fit an N×N tile map")
+    d.add_argument("--report", metavar="DIR", help="also write an HTML design report (3D view, curves, tile map)")
     d.set_defaults(func=_cmd_design)
 
     r = sub.add_parser("reconstruct", help="cube depths, sizes and positions from one mirror image")

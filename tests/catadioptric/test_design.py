@@ -86,3 +86,17 @@ def test_fit_and_design_commands(capsys, valid_setup, write_setup, tmp_path):
     assert len(d["curve"]) > 3 and d["max_discernible_depth"]["eps_1px"] > 0
     assert main(["design", str(setup), "--optimize"]) == 1
     assert "--optimize: expected --depth-range" in capsys.readouterr().err
+
+
+def test_design_report_is_written_and_a_bad_folder_writes_nothing(capsys, valid_setup, write_setup, tmp_path):
+    setup = write_setup(valid_setup)
+    out = tmp_path / "rep"
+    assert main(["design", str(setup), "--depth-range", "0.3", "1.0", "--report", str(out)]) == 0
+    html = (out / "index.html").read_text()
+    assert "<img" in html and all((out / name).exists() for name in ("view3d.png", "tile_map.png"))
+    busy = tmp_path / "busy"
+    busy.mkdir()
+    (busy / "keep.txt").write_text("mine")
+    plot = tmp_path / "p.png"
+    assert main(["design", str(setup), "--depth-range", "0.3", "1.0", "--plot", str(plot), "--report", str(busy)]) == 1
+    assert not plot.exists() and sorted(p.name for p in busy.iterdir()) == ["keep.txt"]
