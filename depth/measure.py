@@ -346,13 +346,17 @@ def detect_cubes(
         occluded = bool(np.any((neighbours != 0) & (neighbours != own_id)))
         cut = bool(np.any(near_outside[sl][local]))
 
-        front, sides = _split_faces(value[sl], chroma[sl], local, min_face_contrast)
+        front, sides, split_reason = _split_faces(
+            srgb_to_linear(rgb[sl]), value[sl], chroma[sl], local, min_face_contrast
+        )
         reasons = []
         if cut:
             reasons.append("blob touches the edge of the mirror region (face may be cut)")
         if occluded:
             reasons.append("blob touches another cube (occlusion)")
-        if front.sum() < 0.25 * local.sum():
+        if split_reason:
+            reasons.append(split_reason)
+        elif front.sum() < 0.25 * local.sum():
             reasons.append("no dominant front face: faces could not be separated")
         color = np.median(rgb[sl][front], axis=0) if front.any() else np.median(rgb[sl][local], axis=0)
 
@@ -383,8 +387,63 @@ def detect_cubes(
     return detections
 
 
-def _split_faces(value: np.ndarray, chroma: np.ndarray, blob: np.ndarray, min_contrast: float):
-    """Front-face mask and other face masks of one blob (local arrays).
+def _split_faces(linear: np.ndarray, value: np.ndarray, chroma: np.ndarray, blob: np.ndarray,
+                 min_contrast: float):
+    """Front-face mask, other face masks and a refusal reason (or None) of one blob (local arrays).
+
+    Geometry first: in the mirror image a cube's front face is the widest part of the blob
+    between near-vertical face boundaries (side strips share a vertical edge with it). Those
+    boundaries are found as internal edge lines (horizontal gradient of linear RGB projected
+    along the blob's lean) or, when the faces are equally bright, as kinks where the top and
+    bottom outlines turn. Then brightness: within the widest part, the largest region of
+    uniform brightness (see `_split_by_brightness`) removes top/bottom strips. A blob with
+    two face-sized parts is two touching cubes of the same colour and is refused.
+    linear : (h, w, 3) linear RGB; value, chroma : (h, w); blob : (h, w) bool.
+    """
+    reason = None
+    region = blob
+    if blob.sum() >= 40 and blob.any(axis=1).sum() >= 10:
+        lean, vbar, xs = _geometric_cuts(linear, blob, min_contrast)
+        if len(xs):
+            vv, uu = np.mgrid[0 : blob.shape[0], 0 : blob.shape[1]]
+            x = uu - lean * (vv - vbar)
+            x_in = x[blob]
+            edges = np.r_[x_in.min() - 1.0, xs, x_in.max() + 1.0]
+            widths = np.diff(edges)
+            order = np.argsort(-widths)
+            k = int(order[0])
+            if len(widths) > 1 and widths[order[1]] >= 0.7 * widths[k] and widths[order[1]] >= 6:
+                reason = "touching cubes of the same colour (two face-sized parts in one blob)"
+            region = blob & (x > edges[k]) & (x < edges[k + 1])
+    reason = reason or _neck_reason(blob)
+    front, _ = _split_by_brightness(value, chroma, region, min_contrast)
+    front = _clean_region(front & region) if (front & region).any() else front
+    rest = cv2.morphologyEx((blob & ~front).astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(rest, connectivity=4)
+    sides = [lab == j for j in 1 + np.argsort(-stats[1:, 4]) if stats[j, 4] >= 10]
+    return front, sides, reason
+
+
+def _neck_reason(blob: np.ndarray):
+    """A reason when the blob is two bodies joined by a narrow neck (rows or columns)."""
+    for axis in (1, 0):
+        extent = blob.sum(axis=axis).astype(np.float64)
+        idx = np.flatnonzero(extent > 0)
+        if len(idx) < 12:
+            continue
+        e = extent[idx[0] : idx[-1] + 1]
+        n = len(e)
+        inner = e[n // 6 : n - n // 6]
+        typical = float(np.median(e))
+        if inner.min() < 0.35 * typical:
+            j = n // 6 + int(np.argmin(inner))
+            if e[:j].max() >= 0.7 * typical and e[j + 1 :].max() >= 0.7 * typical:
+                return "touching cubes of the same colour (blob narrows between two parts)"
+    return None
+
+
+def _split_by_brightness(value: np.ndarray, chroma: np.ndarray, blob: np.ndarray, min_contrast: float):
+    """Front-face mask and other face masks of one blob (local arrays), by brightness only.
 
     Faces are regions of nearly constant brightness separated by steps. Pixels where the
     smoothed brightness (sRGB value) changes faster than noise and slow shading ramps
@@ -413,6 +472,135 @@ def _split_faces(value: np.ndarray, chroma: np.ndarray, blob: np.ndarray, min_co
     n, lab, stats, _ = cv2.connectedComponentsWithStats(rest, connectivity=4)
     sides = [lab == j for j in 1 + np.argsort(-stats[1:, 4]) if stats[j, 4] >= 10]
     return front, sides
+
+
+# ------------------------------------------------------------------ geometric face split
+
+
+def _row_extents(blob: np.ndarray):
+    """Rows holding the blob and each row's first and last column (local arrays)."""
+    has = blob.any(axis=1)
+    vs = np.flatnonzero(has)
+    first = np.argmax(blob[vs], axis=1)
+    last = blob.shape[1] - 1 - np.argmax(blob[vs, ::-1], axis=1)
+    return vs, first.astype(np.float64), last.astype(np.float64)
+
+
+def _col_extents(blob: np.ndarray):
+    us, top, bottom = _row_extents(blob.T)
+    return us, top, bottom
+
+
+def _lean(blob: np.ndarray) -> float:
+    """du/dv of the blob's near-vertical outer sides (median of the left and right slopes)."""
+    vs, first, last = _row_extents(blob)
+    n = len(vs)
+    mid = slice(int(0.2 * n), max(int(0.8 * n), int(0.2 * n) + 3))
+    slopes = [_robust_polyfit(vs[mid].astype(np.float64), s[mid], 1)[0][0] for s in (first, last)]
+    a = float(np.median(slopes))
+    return float(np.clip(a, -0.3, 0.3))
+
+
+def _vertical_edge_lines(linear: np.ndarray, blob: np.ndarray, lean: float, min_contrast: float):
+    """Internal near-vertical edge lines of a blob, from the horizontal gradient projected
+    along the blob's lean: sheared columns x = u − lean·(v − v̄) whose mean gradient stands
+    out of the face noise. Returns the x positions (local, sub-pixel) and the shear origin v̄."""
+    h, w = blob.shape
+    if w < 7:
+        return np.zeros(0), 0.0
+    grad = np.zeros((h, w))
+    grad[:, 1:-1] = np.sqrt(np.sum((linear[:, 2:] - linear[:, :-2]) ** 2, axis=2)) / 2.0
+    # pixels whose ±3 horizontal neighbours are all in the blob: no (anti-aliased) outer boundary
+    inner = cv2.erode(blob.astype(np.uint8), np.ones((1, 7), np.uint8),
+                      borderType=cv2.BORDER_CONSTANT, borderValue=0).astype(bool)
+    vv, uu = np.nonzero(inner)
+    if len(vv) < 20:
+        return np.zeros(0), 0.0
+    vbar = float(vv.mean())
+    x = uu - lean * (vv - vbar)
+    x0 = np.floor(x.min())
+    bins = np.rint(x - x0).astype(int)
+    total = np.bincount(bins, weights=grad[vv, uu])
+    count = np.bincount(bins)
+    ok = count >= max(5, 0.5 * count.max())
+    mean = np.where(ok, total / np.maximum(count, 1), np.nan)
+    idx = np.flatnonzero(ok)
+    if len(idx) < 5:
+        return np.zeros(0), vbar
+    level = float(np.nanmedian(mean))
+    noise = 1.4826 * float(np.nanmedian(np.abs(mean - level)))
+    # a face boundary of contrast c puts ≈ c/2 in each of the two columns beside it
+    thr = level + max(6.0 * noise, 0.25 * min_contrast)
+    m = np.where(ok, mean, -np.inf)
+    peaks = []
+    for i in idx[1:-1]:
+        if m[i] > thr and m[i] >= m[i - 1] and m[i] > m[i + 1]:
+            # sub-pixel: centroid of the peak above the level over ±1 bins
+            wts = np.clip(m[i - 1 : i + 2] - level, 0.0, None)
+            peaks.append(x0 + i + float(np.dot(wts, [-1.0, 0.0, 1.0]) / wts.sum()))
+    return np.array(peaks), vbar
+
+
+def _kink(s: np.ndarray, c: np.ndarray, max_len: int, min_turn: float = 0.35):
+    """Break point of a contour c(s) near its start: a short straight piece, then a smooth
+    (quadratic) one, meeting at an angle. Returns the break's s, or None.
+
+    s, c : (N,) float64 with s increasing. Only breaks 2..max_len samples from the start are tried.
+    """
+    # the end column is partly covered (anti-aliased): its integer extent is unreliable
+    s, c = s[1:], c[1:]
+    n = len(s)
+    if n < 10:
+        return None
+    full = np.polyfit(s, c, 2)
+    sse0 = float(np.sum((c - np.polyval(full, s)) ** 2))
+    best = None
+    for k in range(3, min(max_len, n - 7) + 1):
+        head = np.polyfit(s[: k + 1], c[: k + 1], 1)
+        tail = np.polyfit(s[k:], c[k:], 2)
+        sse = float(np.sum((c[: k + 1] - np.polyval(head, s[: k + 1])) ** 2)
+                    + np.sum((c[k:] - np.polyval(tail, s[k:])) ** 2))
+        if best is None or sse < best[0]:
+            best = (sse, k, head, tail)
+    if best is None:
+        return None
+    sse, k, head, tail = best
+    turn = abs(head[0] - np.polyval(np.polyder(tail), s[k]))
+    # integer contours carry ±0.5 px steps: ask for a clear drop of the misfit and a real angle
+    if turn < min_turn or sse0 - sse < max(2.0, 0.5 * sse0):
+        return None
+    return float(s[k])
+
+
+def _geometric_cuts(linear: np.ndarray, blob: np.ndarray, min_contrast: float):
+    """Lines u = lean·(v − v̄) + x splitting side strips off a blob, from internal edges or,
+    where the faces are equally bright, from kinks of the blob's top and bottom outline.
+
+    Returns (lean, v̄, xs) with xs the sorted cut positions (possibly empty)."""
+    lean = _lean(blob)
+    xs, vbar = _vertical_edge_lines(linear, blob, lean, min_contrast)
+    us, top, bottom = _col_extents(blob)
+    width = len(us)
+    max_len = max(2, width // 3)
+    if len(xs):  # internal edges seen: the outline's kinks are only a fallback
+        return lean, vbar, np.sort(xs)
+    xs = []
+    for flip in (False, True):  # a strip on the left end, then on the right end
+        found = []
+        for contour in (top, bottom):
+            s, c = (us[::-1] * -1.0, contour[::-1]) if flip else (us.astype(np.float64), contour)
+            k = _kink(s, c, max_len)
+            if k is not None:
+                u = -k if flip else k
+                v = float(np.interp(u, us, contour))
+                found.append(u - lean * (v - vbar))
+        # a side strip kinks both the top and the bottom outline at its shared edge (a lone
+        # kink is more often the corner of a top or bottom face's silhouette)
+        if len(found) == 2 and abs(found[0] - found[1]) <= 2.0:
+            x = 0.5 * (found[0] + found[1])
+            if all(abs(x - y) > 1.5 for y in xs):
+                xs.append(x)
+    return lean, vbar, np.sort(np.array(xs, dtype=np.float64))
 
 
 _CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
