@@ -30,8 +30,12 @@ from .scene import Scene
 
 __all__ = ["Render", "render", "linear_to_srgb8", "trace_paths"]
 
-TILE_PIXELS = 1 << 17
-"""Pixels per tile of the pixel-centre pass (fixed, so results do not depend on `workers`)."""
+TILE_PIXELS = 1 << 15
+"""Pixels per tile of the pixel-centre pass (fixed, so results do not depend on `workers`).
+
+Small enough that a tile's float64 temporaries (256 KiB each) stay in cache: 1.5-2x faster than 1 << 17."""
+BATCH_RAYS = 1 << 15
+"""Rays traced at once in the supersampling pass (same cache reason)."""
 CHUNK_PIXELS = 1 << 15
 """Edge pixels per chunk of the supersampling pass."""
 MIN_PARALLEL_PIXELS = 1 << 16
@@ -462,7 +466,10 @@ def _sample_chunk(start: int, stop: int) -> int:
     px = (centres[:, None, :] + offsets[None, :, :]).reshape(-1, 2)
     o, d = cam.rays(px)
     color = np.empty((len(px), 3))
-    rays = _trace_into(_tracer(), o, d, st["bounces"], {"color": color})
+    rays = 0
+    for a in range(0, len(px), BATCH_RAYS):
+        b = min(a + BATCH_RAYS, len(px))
+        rays += _trace_into(_tracer(), o[a:b], d[a:b], st["bounces"], {"color": color[a:b]})
     st["out"]["image"][flat] = color.reshape(len(flat), len(offsets), 3).mean(axis=1)
     return rays
 
