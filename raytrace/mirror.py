@@ -35,9 +35,16 @@ def reflect(directions, normals) -> np.ndarray:
     """
     d = np.asarray(directions, dtype=np.float64)
     n = np.asarray(normals, dtype=np.float64)
-    r = d - 2.0 * np.sum(d * n, axis=-1, keepdims=True) * n
+    if d.shape != n.shape or d.shape[-1:] != (3,):
+        r = d - 2.0 * np.sum(d * n, axis=-1, keepdims=True) * n
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return r / np.linalg.norm(r, axis=-1, keepdims=True)
+    # the same sums in the same order as np.sum / np.linalg.norm over the last axis, per component (faster)
+    dn = d[..., 0] * n[..., 0] + d[..., 1] * n[..., 1] + d[..., 2] * n[..., 2]
+    r = d - (2.0 * dn)[..., None] * n
     with np.errstate(invalid="ignore", divide="ignore"):
-        return r / np.linalg.norm(r, axis=-1, keepdims=True)
+        r /= np.sqrt(r[..., 0] * r[..., 0] + r[..., 1] * r[..., 1] + r[..., 2] * r[..., 2])[..., None]
+    return r
 
 
 def _nan_rows(n: int) -> np.ndarray:

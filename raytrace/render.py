@@ -107,6 +107,25 @@ class _Geometry:
             self.colors = np.zeros((0, 3))
 
 
+_ROW = np.dtype((np.void, 24))
+
+
+def _set_rows(a: np.ndarray, rows: np.ndarray, values) -> None:
+    """a[rows] = values for a C-contiguous (N, 3) float64 `a`; values (M, 3) or (3,) float64.
+
+    Rows are moved as 24-byte items: 4-5x faster than numpy's row-wise fancy assignment.
+    """
+    v = np.ascontiguousarray(values, dtype=np.float64)
+    if not a.flags.c_contiguous or a.dtype != np.float64 or a.shape[1:] != (3,):
+        a[rows] = v
+        return
+    item = a.view(_ROW).reshape(len(a))
+    if v.ndim == 1:
+        item[rows] = v.view(_ROW)[0]
+    else:
+        item[rows] = v.view(_ROW).reshape(len(v))
+
+
 def _object_t(geo: _Geometry, o, d, geom, prim) -> np.ndarray:
     """Exact float64 ray parameter (N,) of hits `geom`, `prim` (N,) on cubes or the ground."""
     t = np.full(len(o), np.inf)
@@ -361,7 +380,7 @@ def _trace_into(tracer, origins, directions, bounces: int, dest: dict) -> int:
             nf = np.where(dn[:, None] > 0, -nf, nf)
             lam = light.ambient + light.intensity * np.maximum(0.0, nf @ light.to_light)
             out = ci if idx is None else idx[ci]
-            color[out] = geo.colors[gc] * lam[:, None]
+            _set_rows(color, out, geo.colors[gc] * lam[:, None])
             if truth:
                 object_id[out] = gc
                 distance[out] = t if travelled is None else travelled[ci] + t
@@ -379,14 +398,14 @@ def _trace_into(tracer, origins, directions, bounces: int, dest: dict) -> int:
                 lam = light.ambient + light.intensity * np.maximum(0.0, ng @ light.to_light)
                 albedo = np.where(parity[:, None] == 0, g.colors[0], g.colors[1])
                 out = gi if idx is None else idx[gi]
-                color[out] = albedo * lam[:, None]
+                _set_rows(color, out, albedo * lam[:, None])
                 if truth:
                     distance[out] = t if travelled is None else travelled[gi] + t
                     key[out] = 4 + n_cubes * 8 + parity
         bg = np.flatnonzero(geom == -1)
         if len(bg):
             out = bg if idx is None else idx[bg]
-            color[out] = scene.background
+            _set_rows(color, out, scene.background)
             if truth:
                 key[out] = 1
 
@@ -398,11 +417,11 @@ def _trace_into(tracer, origins, directions, bounces: int, dest: dict) -> int:
         r = reflect(np.take(d, mi, axis=0), m_n)
         if truth:
             if bounce == 0:
-                mirror_point[out] = m_p
-                reflected_dir[out] = r
+                _set_rows(mirror_point, out, m_p)
+                _set_rows(reflected_dir, out, r)
             via[out] = True
         if bounce == bounces:  # out of bounces: black, no object
-            color[out] = 0.0
+            _set_rows(color, out, np.zeros(3))
             if truth:
                 key[out] = 2
             break
