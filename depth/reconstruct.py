@@ -109,15 +109,14 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     cube_size : float, optional — known edge length in metres
     progress : callable(done, total), optional
     """
-    from raytrace.truth import mirror_rays
+    from raytrace.truth import mirror_mask, mirror_rays
     from depth.measure import detect_cubes, face_outline
 
     if method not in ALL_METHODS:
         raise DepthError(f"method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
     img = check_image(image, camera.resolution)
     w, h = camera.resolution
-    ray_map = mirror_rays(camera, mirror)
-    mask = ray_map.hit.reshape(h, w)
+    mask = mirror_mask(camera, mirror)
     if not mask.any():
         raise DepthError("image: the setup's camera sees no mirror")
     if np.ptp(img[mask], axis=0).max() < 2.0 / 255.0:

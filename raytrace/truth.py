@@ -15,7 +15,7 @@ from ._validate import as_points
 from .errors import RaytraceError
 from .mirror import CylinderMirror, reflect
 
-__all__ = ["MirrorRays", "mirror_rays", "reflection_pixels", "cube_truth"]
+__all__ = ["MirrorRays", "mirror_rays", "mirror_mask", "reflection_pixels", "cube_truth"]
 
 
 @dataclass(frozen=True)
@@ -53,6 +53,44 @@ def mirror_rays(camera, mirror, pixels=None) -> MirrorRays:
     _, hit, points, normals = mirror.intersect(origins, directions)
     reflected = reflect(directions, normals)  # NaN where normals are NaN
     return MirrorRays(points=points, directions=reflected, hit=hit)
+
+
+def mirror_mask(camera, mirror, block: int = 8) -> np.ndarray:
+    """(H, W) bool: pixels whose centre ray hits the mirror, the same as `mirror_rays(...).hit`.
+
+    Traces one ray per `block`×`block` block corner first, then every pixel only in blocks whose
+    corners disagree or touch a disagreeing block, so the cost follows the mirror's outline rather
+    than the image area. A mirror feature smaller than a block between hits could be missed; the
+    cylinder's image is a smooth region many blocks wide.
+    """
+    w, h = camera.resolution
+    gx = np.arange(0, w + block, block).clip(max=w - 1).astype(np.float64)
+    gy = np.arange(0, h + block, block).clip(max=h - 1).astype(np.float64)
+    uu, vv = np.meshgrid(gx, gy)
+    o, d = camera.rays(np.column_stack([uu.ravel(), vv.ravel()]))
+    corner_hit = mirror.intersect(o, d)[1].reshape(len(gy), len(gx))
+    # A block is uniform when its four corners agree; mixed blocks and their neighbours are traced.
+    c = corner_hit
+    all_in = c[:-1, :-1] & c[1:, :-1] & c[:-1, 1:] & c[1:, 1:]
+    any_in = c[:-1, :-1] | c[1:, :-1] | c[:-1, 1:] | c[1:, 1:]
+    mixed = any_in & ~all_in
+    grow = mixed.copy()
+    grow[1:, :] |= mixed[:-1, :]
+    grow[:-1, :] |= mixed[1:, :]
+    grow[:, 1:] |= grow[:, :-1].copy()
+    grow[:, :-1] |= grow[:, 1:].copy()
+    mask = np.repeat(np.repeat(all_in & ~grow, block, axis=0), block, axis=1)[:h, :w]
+    by, bx = np.nonzero(grow)
+    if len(by):
+        ys = (by[:, None] * block + np.arange(block)[None, :])
+        xs = (bx[:, None] * block + np.arange(block)[None, :])
+        py = np.repeat(ys, block, axis=1).ravel()
+        px = np.tile(xs, (1, block)).ravel()
+        keep = (py < h) & (px < w)
+        py, px = py[keep], px[keep]
+        o, d = camera.rays(np.column_stack([px, py]).astype(np.float64))
+        mask[py, px] = mirror.intersect(o, d)[1]
+    return mask
 
 
 def _perp_basis(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
