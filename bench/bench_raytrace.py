@@ -92,6 +92,18 @@ def time_simulate_command(setup, workdir: Path) -> float:
     return best_of(lambda: subprocess.run(cmd, check=True, capture_output=True))
 
 
+def simulate_breakdown(setup, workdir: Path) -> dict:
+    """Where the command's time goes: start-up + imports (fresh process), `simulate`, `write_simulation` (best of each)."""
+    from catadioptric.simulate import simulate, write_simulation
+
+    imports = "import catadioptric.cli, catadioptric.setup, catadioptric.simulate, raytrace.render, raytrace.truth, rich"
+    t_imp = best_of(lambda: subprocess.run([sys.executable, "-c", imports], check=True, capture_output=True))
+    sims = []
+    t_sim = best_of(lambda: sims.append(simulate(setup, spp=SPP, seed=0)))
+    t_write = best_of(lambda: write_simulation(sims[-1], workdir / "breakdown.png"))
+    return {"imports": t_imp, "simulate": t_sim, "write": t_write}
+
+
 def time_raw_embree(scene, primary, reflected):
     tris = np.concatenate([c.mesh().triangles for c in scene.objects] + [scene.mirror.mesh(720).triangles])
     es = build_scene(tris)
@@ -191,7 +203,10 @@ def main():
     del ours
     with tempfile.TemporaryDirectory() as tmp:
         t_cmd = time_simulate_command(setup, Path(tmp))
+        parts = simulate_breakdown(setup, Path(tmp))
     print(f"catadioptric simulate (whole command, fresh process, 4 files written): {t_cmd:6.2f} s")
+    print(f"  of which: start-up + imports {parts['imports']:.2f} s, simulate() {parts['simulate']:.2f} s, "
+          f"write_simulation() {parts['write']:.2f} s (each best of {REPEAT}, measured apart)")
     primary, reflected = all_rays(scene, cam)
     n_rays = len(primary[0]) + len(reflected[0])
     t_embree = time_raw_embree(scene, primary, reflected)
