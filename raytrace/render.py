@@ -536,7 +536,8 @@ def _openblas_thread_controls() -> list:
     """(get, set) ctypes functions of every OpenBLAS library loaded in this process (Linux; else [])."""
     try:
         with open("/proc/self/maps") as f:
-            paths = sorted({line.split()[-1] for line in f if "openblas" in line.lower() and ".so" in line})
+            fields = (line.split(maxsplit=5) for line in f if "openblas" in line.lower())
+            paths = sorted({x[5].strip() for x in fields if len(x) == 6 and os.path.isfile(x[5].strip())})
     except OSError:
         return []
     controls = []
