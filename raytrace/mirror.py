@@ -2,7 +2,7 @@
 
 Each mirror answers `intersect` (first hit in float64 with surface normals), gives a
 `mesh()` for Embree, and `refine_hits` turns an Embree hit on that mesh into an exact float64
-hit. `MIRRORS` maps a setup file's `type` key to its class.
+hit (`CylinderMirror.first_hits` is the renderer's analytic fast path). `MIRRORS` maps a setup file's `type` key to its class.
 """
 
 from __future__ import annotations

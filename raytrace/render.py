@@ -1,8 +1,9 @@
 """Rendering: `render` a `Scene` through any camera into a `Render` (image plus exact per-pixel truth).
 
-Embree (embreex) finds first hits on triangle meshes; every hit is then recomputed in float64
-(cube face planes, the ground plane, the mirror's analytic surface) and shaded Lambertian with a
-directional light plus ambient light. The numpy twin (`backend="numpy"`) replaces Embree with
+Embree (embreex) finds first hits on the cubes and the ground; a `CylinderMirror` is intersected
+analytically (a float64 quadratic over the rays, `CylinderMirror.first_hits`), any other mirror is
+tessellated into Embree and refined. Every hit is recomputed in float64 (cube face planes, the
+ground plane, the mirror's surface) and shaded Lambertian with a directional light plus ambient light. The numpy twin (`backend="numpy"`) replaces Embree with
 analytic slab and cylinder tests and shares everything else. Large images are split in tiles
 over worker processes (Embree holds the GIL). Supersampling is adaptive: the `spp` stratified
 samples are traced only for pixels whose 3×3 neighbourhood shows an edge (a change of object,
