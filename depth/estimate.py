@@ -44,6 +44,9 @@ RayFunction = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 SIDES = ("left", "right", "top", "bottom")
 
+UPRIGHT_MISFIT_PX = 0.25
+"""Rms edge misfit (pixels) above which `exact` also tries a face tilted off the vertical."""
+
 EDGE_BIAS_PX = 0.05
 """Systematic edge-location uncertainty of one whole side, in pixels (σ of a common offset of all its
 points). Sub-pixel edge points scatter by only 0.01–0.02 px about their fitted side on our renders,
@@ -60,12 +63,15 @@ class FaceMeasurement:
     corners_px : (4, 2) float64, [top-left, top-right, bottom-right, bottom-left]
     face_px : (P, 2) float64, pixel centres inside the face (for the local XSlit fit)
     edge_noise_px : float, rms residual of the side fits in pixels
+    back_sides_px : (left, right), each (M, 2) float64 or None: silhouette points of the cube's back
+        vertical edge where a side face shows beside the front face (`depth.measure.silhouette_sides`)
     """
 
     sides_px: tuple
     corners_px: np.ndarray
     face_px: np.ndarray
     edge_noise_px: float = 0.1
+    back_sides_px: tuple = (None, None)
 
 
 @dataclass(frozen=True)
@@ -330,102 +336,194 @@ def _dds(local: LocalXSlit, kap: dict) -> CubeEstimate | FailedEstimate:
                         rms_residual=float(np.mean(kap["rms"])))
 
 
+def _side_plane_w(points, directions, c, axes, side_sign, size) -> np.ndarray:
+    """Where rays meet the side plane b = side_sign·size/2 of a face (centre c, rows of `axes`:
+    vertical, horizontal, normal): their coordinate along the normal, w = (q − c)·n : (N,).
+    `side_sign` is a scalar or (N,) array."""
+    h, n = axes[1], axes[2]
+    offset = np.broadcast_to(np.asarray(side_sign, dtype=np.float64) * size / 2.0, (len(points),))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = ((c - points) @ h + offset) / (directions @ h)
+    q = points + t[:, None] * directions - c
+    return q @ n
+
+
 def _square_axes(rotvec: np.ndarray, base: np.ndarray) -> np.ndarray:
     """Rows (e_vertical, e_horizontal, normal) of the face, rotated by `rotvec` from `base`."""
     return Rotation.from_rotvec(rotvec).as_matrix() @ base.T
 
 
+def _face_coords(origins, directions, c, axes):
+    """Where rays meet the face plane (centre c, rows of `axes`: vertical, horizontal, normal):
+    their (a, b) = (vertical, horizontal) coordinates : two (N,) arrays."""
+    n = axes[2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = ((c - origins) @ n) / (directions @ n)
+    q = origins + t[:, None] * directions - c
+    return q @ axes[0], q @ axes[1]
+
+
 def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local: LocalXSlit,
-           cube_size: float | None) -> CubeEstimate | FailedEstimate:
-    """Non-central PnP of the square face from the exact rays of its edge points."""
-    pts, dirs, side_id, pix = [], [], [], []
+           cube_size: float | None, up=None) -> CubeEstimate | FailedEstimate:
+    """Non-central PnP of the square face (and its back vertical edges) from exact per-pixel rays.
+
+    Residuals are pixel-like: each is a metric offset in the face (or side) plane divided by the
+    metres that one pixel spans there, re-measured at the current pose. Stage 1 fits an upright
+    face (turned about `up` only) from several starting turns; stage 2 frees the tilt only when
+    the upright face misfits the edges.
+    """
+    sides = []
     for i, sp in enumerate(meas.sides_px):
         sp = np.asarray(sp, dtype=np.float64)
-        p, d = rays(sp)
-        ok = np.all(np.isfinite(p), axis=1)
-        pts.append(p[ok]), dirs.append(d[ok]), side_id.append(np.full(ok.sum(), i)), pix.append(sp[ok])
-    p, d, sid, pix = np.concatenate(pts), np.concatenate(dirs), np.concatenate(side_id), np.concatenate(pix)
-    # Base axes: vertical = along the local slit of the vertical sides, normal = toward the mirror.
+        q, r = rays(sp)
+        ok = np.all(np.isfinite(q), axis=1)
+        sides.append((q[ok], r[ok], np.full(ok.sum(), i), sp[ok]))
+    for k, sp in enumerate(meas.back_sides_px):
+        if sp is not None and len(sp) >= 3:
+            sp = np.asarray(sp, dtype=np.float64)
+            q, r = rays(sp)
+            ok = np.all(np.isfinite(q), axis=1)
+            sides.append((q[ok], r[ok], np.full(ok.sum(), 4 + k), sp[ok]))
+    p, d, sid, pix = (np.concatenate(x) for x in zip(*sides))
+    # Base axes: vertical = the scene's up (or the local axis-parallel slit), normal = toward the mirror.
     n0 = start.normal / np.linalg.norm(start.normal)
     vert_world = local.axes[0] if local.vertical == 0 else local.axes[1]
+    if up is not None:  # signed like the local slit
+        up = np.asarray(up, dtype=np.float64) / np.linalg.norm(up)
+        vert_world = up if up @ vert_world >= 0 else -up
+        n0 = n0 - (n0 @ vert_world) * vert_world
+        n0 /= np.linalg.norm(n0)
     v0 = vert_world - (vert_world @ n0) * n0
     v0 /= np.linalg.norm(v0)
-    h0 = np.cross(n0, v0)
-    base = np.stack([v0, h0, n0], axis=1)  # columns
+    base = np.stack([v0, np.cross(n0, v0), n0], axis=1)  # columns
     c0 = start.front_face_center
     s0 = start.size if cube_size is None else cube_size
-    is_lr = sid < 2
-
-    def face_coords(origins, directions, c, axes):
-        n = axes[2]
-        t = ((c - origins) @ n) / (directions @ n)
-        q = origins + t[:, None] * directions - c
-        return q @ axes[0], q @ axes[1]
-
-    # Side signs: where each side lies in the face's (a = vertical, b = horizontal) coordinates.
-    a0, b0 = face_coords(p, d, c0, base.T)
-    sign = np.array([np.sign(np.mean(b0[sid == 0])), np.sign(np.mean(b0[sid == 1])),
-                     np.sign(np.mean(a0[sid == 2])), np.sign(np.mean(a0[sid == 3]))])
-    if np.any(sign == 0) or sign[0] == sign[1] or sign[2] == sign[3]:
-        return FailedEstimate("exact", "the sides do not bound a quadrilateral around the face centre")
-    # Residuals in pixels: metres per pixel across each side (u for left/right, v for top/bottom),
-    # measured on the starting plane. Pixel noise is isotropic; metric errors are not (the mirror
-    # compresses the image across its axis far more than along it).
-    step = np.where(is_lr[:, None], [[0.5, 0.0]], [[0.0, 0.5]])
-    p2, d2 = rays(pix + step)
-    a2, b2 = face_coords(p2, d2, c0, base.T)
-    mpp = np.abs(np.where(is_lr, b2 - b0, a2 - a0)) / 0.5
-    good = np.isfinite(mpp) & (mpp > 0)
-    if good.sum() < 8:
-        return FailedEstimate("exact", "too few edge points with a usable pixel scale")
-    p, d, sid, is_lr, mpp = p[good], d[good], sid[good], is_lr[good], mpp[good]
     scale = max(s0, 1e-6)
+    is_lr = sid < 2
+    is_back = sid >= 4
+    # Side signs: where each side lies in the face's (a = vertical, b = horizontal) coordinates.
+    a0, b0 = _face_coords(p, d, c0, base.T)
+    sign = np.zeros(6)
+    for i, coord in enumerate((b0, b0, a0, a0)):
+        sign[i] = np.sign(np.mean(coord[sid == i])) if np.any(sid == i) else 0.0
+    if np.any(sign[:4] == 0) or sign[0] == sign[1] or sign[2] == sign[3]:
+        return FailedEstimate("exact", "the sides do not bound a quadrilateral around the face centre")
+    sign[4:] = sign[:2]
+    step = np.where(is_lr[:, None] | is_back[:, None], [[0.5, 0.0]], [[0.0, 0.5]])
+    p2, d2 = rays(pix + step)
 
     def unpack(x):
-        rot = x[:3]
         c = c0 + x[3:6] * scale
         s = s0 * np.exp(x[6]) if cube_size is None else cube_size
-        return rot, c, s
+        return x[:3], c, s
+
+    def coords(q, r, c, axes, s):
+        """Per point: its measured coordinate minus where the model puts its edge (metres)."""
+        a, b = _face_coords(q, r, c, axes)
+        front = np.where(is_lr, b, a) - sign[sid] * s / 2.0
+        w = _side_plane_w(q, r, c, axes, sign[sid], s)  # back edges: on the side plane at w = −s
+        return np.where(is_back, w + s, front)
+
+    def pixel_weights(x):
+        """1 / (metres per pixel) across each edge at pose x; 0 where a pixel says nothing."""
+        rot, c, s = unpack(x)
+        axes = _square_axes(rot, base)
+        m = np.abs(coords(p2, d2, c, axes, s) - coords(p, d, c, axes, s)) / 0.5
+        ok = np.isfinite(m) & (m > 0) & (m < 2.0 * s)
+        return np.where(ok, 1.0 / np.where(ok, m, 1.0), 0.0)
+
+    weight = pixel_weights(np.zeros(7))
+    if np.count_nonzero(weight[sid < 4]) < 8:
+        return FailedEstimate("exact", "too few edge points with a usable pixel scale")
 
     def resid(x):
         rot, c, s = unpack(x)
-        a, b = face_coords(p, d, c, _square_axes(rot, base))
-        return (np.where(is_lr, b, a) - sign[sid] * s / 2.0) / mpp
+        r = coords(p, d, c, _square_axes(rot, base), s) * weight
+        return np.where(np.isfinite(r), r, 0.0)
+
+    def covariance(j, r, n_params):
+        # Sandwich covariance with Σ = σ²·I + EDGE_BIAS_PX²·(ones within each side): a common offset
+        # of a whole side is not averaged away by its many points.
+        sigma2 = float(r @ r) / max(len(r) - n_params, 1)  # point scatter (pixels²)
+        jtj_inv = np.linalg.pinv(j.T @ j)
+        meat = sigma2 * (j.T @ j)
+        for side in range(6):
+            g = j[sid == side].sum(axis=0)
+            meat += EDGE_BIAS_PX ** 2 * np.outer(g, g)
+        return jtj_inv @ meat @ jtj_inv
 
     # The front face is the cube face nearest to facing the mirror: within 54.7° of it.
     lim = np.deg2rad(54.7)
-    sol = least_squares(resid, np.zeros(7), method="trf", loss="soft_l1", f_scale=1.0, x_scale="jac",
-                        bounds=([-lim] * 3 + [-np.inf] * 4, [lim] * 3 + [np.inf] * 4), max_nfev=300)
-    if not sol.success and sol.status <= 0:
-        return FailedEstimate("exact", f"least squares did not converge ({sol.message})")
-    rot, c, s = unpack(sol.x)
-    axes = _square_axes(rot, base)
-    normal = axes[2]
-    center = c - normal * s / 2.0  # the normal points toward the mirror; the cube lies behind the face
-    r = sol.fun
-    dof = max(len(r) - 7, 1)
-    sigma2 = float(r @ r) / dof  # point scatter (pixels²)
-    j = sol.jac
-    # Sandwich covariance with Σ = σ²·I + EDGE_BIAS_PX²·(ones within each side): a common offset
-    # of a whole side is not averaged away by its many points.
-    jtj_inv = np.linalg.pinv(j.T @ j)
-    meat = sigma2 * (j.T @ j)
-    for side in range(4):
-        g = j[sid == side].sum(axis=0)
-        meat += EDGE_BIAS_PX ** 2 * np.outer(g, g)
-    cov = jtj_inv @ meat @ jtj_inv
+    opts = dict(method="trf", loss="soft_l1", f_scale=1.0, x_scale="jac", max_nfev=300)
+    upright = np.array([0, 3, 4, 5, 6])  # turn about the vertical, centre, log size
+
+    def solve(free: bool, starts):
+        best = None
+        for x0 in starts:
+            if free:
+                sol = least_squares(resid, x0, bounds=([-lim] * 3 + [-np.inf] * 4, [lim] * 3 + [np.inf] * 4),
+                                    **opts)
+                x = sol.x
+            else:
+                def fun(y):
+                    x = np.zeros(7)
+                    x[upright] = y
+                    return resid(x)
+                sol = least_squares(fun, x0[upright], bounds=([-lim] + [-np.inf] * 4, [lim] + [np.inf] * 4),
+                                    **opts)
+                x = np.zeros(7)
+                x[upright] = sol.x
+            if (sol.success or sol.status > 0) and (best is None or sol.cost < best[1].cost):
+                best = (x, sol)
+        return best
+
+    def refined(free: bool, starts):
+        """Solve, re-measure the pixel scales at the solution, and solve once more from there."""
+        nonlocal weight
+        best = solve(free, starts)
+        if best is None:
+            return None
+        weight = pixel_weights(best[0])
+        return solve(free, [best[0]])
+
+    # Stage 1, upright. The ddar start can be tens of degrees off for a face turned from the local
+    # XSlit frame (one looking at the mirror axis from the side), so the turn starts from several values.
+    turns = np.deg2rad([0.0, -15.0, 15.0, -30.0, 30.0, -45.0, 45.0])
+    stage1 = refined(False, [np.r_[t, np.zeros(6)] for t in turns])
+    if stage1 is None:
+        return FailedEstimate("exact", "least squares did not converge from any starting turn")
+    x_best, sol1 = stage1
+    cov = np.zeros((7, 7))
+    cov[np.ix_(upright, upright)] = covariance(sol1.jac, sol1.fun, 5)
+    # Stage 2, any orientation, only when the upright face does not explain the edges (rms above
+    # UPRIGHT_MISFIT_PX, many times the sub-pixel edge scatter), kept only when it halves the misfit:
+    # a free tilt fitted to noise slides along a valley of tilt against depth.
+    rms1 = float(np.sqrt(np.mean(sol1.fun ** 2)))
+    if rms1 > UPRIGHT_MISFIT_PX:
+        weight_upright = weight
+        rolls = np.deg2rad([0.0, -20.0, 20.0, -40.0, 40.0])
+        starts = [np.r_[origin[:2], roll, origin[3:]] for origin in (x_best, np.zeros(7)) for roll in rolls]
+        stage2 = refined(True, starts)
+        if stage2 is not None and np.sqrt(np.mean(stage2[1].fun ** 2)) < 0.5 * rms1:
+            x_best, cov = stage2[0], covariance(stage2[1].jac, stage2[1].fun, 7)
+        else:
+            weight = weight_upright
+    rot, c, s = unpack(x_best)
+    normal = _square_axes(rot, base)[2]
+    r = resid(x_best)
+
     # Propagate to the centre, size and z numerically.
     def derived(x):
         rr, cc, ss = unpack(x)
         nn = _square_axes(rr, base)[2]
-        ctr = cc - nn * ss / 2.0
+        ctr = cc - nn * ss / 2.0  # the normal points toward the mirror; the cube lies behind the face
         return np.r_[ctr, ss, local.to_frame(ctr[None])[0, 2]]
-    f0 = derived(sol.x)
+    f0 = derived(x_best)
     jac_d = np.empty((5, 7))
     for k in range(7):
         dx = np.zeros(7)
         dx[k] = 1e-6
-        jac_d[:, k] = (derived(sol.x + dx) - derived(sol.x - dx)) / 2e-6
+        jac_d[:, k] = (derived(x_best + dx) - derived(x_best - dx)) / 2e-6
     cov_d = jac_d @ cov @ jac_d.T
     sd = np.sqrt(np.maximum(np.diag(cov_d), 0.0))
     std = {"z": float(sd[4]), "size": float(sd[3]), "center": float(np.sqrt(np.sum(sd[:3] ** 2)))}
@@ -480,7 +578,7 @@ def estimate_faces_shape_prior(rays: RayFunction, measurements, seed: int = 0) -
 
 
 def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact",
-                  cube_size: float | None = None, seed: int = 0):
+                  cube_size: float | None = None, seed: int = 0, up=None):
     """Estimate one cube from its measured front face; returns `CubeEstimate` or `FailedEstimate`.
 
     Parameters
@@ -491,6 +589,9 @@ def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact
     method : "ddar", "dds" or "exact"
     cube_size : float, optional
         A known edge length (metres); otherwise the image fixes it.
+    up : (3,) float64, optional
+        The scene's vertical (the mirror axis): ``exact`` first fits a face whose vertical sides are
+        parallel to it, and tilts it only when the edges demand. Default: the local axis-parallel slit.
     """
     if method not in METHODS:
         raise DepthError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
@@ -507,4 +608,4 @@ def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact
         return FailedEstimate(method, f"aspect ratio: {exc}")
     if method == "ddar":
         return start
-    return _exact(rays, meas, start, local, cube_size)
+    return _exact(rays, meas, start, local, cube_size, up)

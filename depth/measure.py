@@ -911,3 +911,63 @@ def _refine(linear, model, half_width, margin, min_contrast, min_points, spacing
     if isinstance(corners, FailedMeasurement):
         return corners
     return lines_arr, quads_arr, corners, sides, normals, np.array(rms), np.array(contrast), residuals
+
+
+def silhouette_sides(
+    image: np.ndarray,
+    blob_mask: np.ndarray,
+    outline: FaceOutline,
+    *,
+    margin_frac: float = 0.15,
+    profile_half_width_px: float = 1.5,
+    min_contrast: float = 0.02,
+    min_gap_px: float = 0.75,
+    min_points: int = 8,
+) -> tuple:
+    """Sub-pixel points of the cube's silhouette beside its front face: (left, right).
+
+    Along the rows of the front face (less `margin_frac` of its height at the top and bottom, where
+    top or bottom faces may show), the blob's outermost boundary against the background is located
+    to sub-pixel precision with the same area-under-the-profile method as `face_outline`. Where it
+    lies more than `min_gap_px` beyond the face's own side, a side face is visible and these points
+    are the image of the cube's back vertical edge; such a side is returned as (M, 2) float64
+    (u, v), otherwise None. Silhouettes against the background do not depend on how the faces are
+    lit, and the back edge tells how far the cube is turned.
+    """
+    image = _check_image(image)
+    h, w = image.shape[:2]
+    blob_mask = _check_mask(blob_mask, (h, w), "blob_mask")
+    tl, tr, br, bl = outline.corners_px
+    top, bottom = max(tl[1], tr[1]), min(bl[1], br[1])
+    span = bottom - top
+    rows = np.arange(np.ceil(top + margin_frac * span), np.floor(bottom - margin_frac * span) + 1).astype(int)
+    rows = rows[(rows >= 0) & (rows < h)]
+    out = []
+    for side, sign in ((0, -1.0), (1, 1.0)):
+        if len(rows) < min_points:
+            out.append(None)
+            continue
+        sub = blob_mask[rows]
+        has = sub.any(axis=1)
+        cols = np.where(sign < 0, np.argmax(sub, axis=1), w - 1 - np.argmax(sub[:, ::-1], axis=1))
+        r, c = rows[has], cols[has].astype(np.float64)
+        start = np.stack([c + 0.5 * sign, r.astype(np.float64)], axis=1)  # the pixel boundary, outward
+        inside = (start[:, 0] - profile_half_width_px >= 0) & (start[:, 0] + profile_half_width_px <= w - 1)
+        start = start[inside]
+        if len(start) < min_points:
+            out.append(None)
+            continue
+        normal = np.tile([sign, 0.0], (len(start), 1))
+        x0, y0 = int(max(start[:, 0].min() - 4, 0)), int(max(start[:, 1].min() - 1, 0))
+        x1, y1 = int(min(start[:, 0].max() + 5, w)), int(min(start[:, 1].max() + 2, h))
+        linear = srgb_to_linear(image[y0:y1, x0:x1])
+        e, contrast = _edge_offsets(linear, start - [x0, y0], normal, profile_half_width_px, min_contrast)
+        good = (contrast >= min_contrast) & (np.abs(e) <= profile_half_width_px - 0.5)
+        pts = start[good] + e[good, None] * normal[good]
+        if len(pts) < min_points:
+            out.append(None)
+            continue
+        a, b = outline.lines[side]
+        gap = sign * (pts[:, 0] - (a * pts[:, 1] + b))
+        out.append(pts if np.median(gap) > min_gap_px else None)
+    return tuple(out)

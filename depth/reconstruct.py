@@ -110,7 +110,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     progress : callable(done, total), optional
     """
     from raytrace.truth import mirror_mask, mirror_rays
-    from depth.measure import detect_cubes, face_outline
+    from depth.measure import detect_cubes, face_outline, silhouette_sides
 
     if method not in ALL_METHODS:
         raise DepthError(f"method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
@@ -141,14 +141,16 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             continue
         ys, xs = np.nonzero(det.front_face_mask)
         meas = FaceMeasurement(tuple(outline.sides), outline.corners_px,
-                               np.column_stack([xs, ys]).astype(np.float64), outline.edge_noise_px)
+                               np.column_stack([xs, ys]).astype(np.float64), outline.edge_noise_px,
+                               back_sides_px=silhouette_sides(img, det.mask, outline))
         measured.append((meas, bbox, outline))
         if progress is not None:
             progress(i + 1, total)
     if method == "shape_prior":
         estimates = estimate_faces_shape_prior(rays, [m for m, _, _ in measured])
     else:
-        estimates = [estimate_face(rays, m, method=method, cube_size=cube_size) for m, _, _ in measured]
+        up = getattr(mirror, "axis", None)
+        estimates = [estimate_face(rays, m, method=method, cube_size=cube_size, up=up) for m, _, _ in measured]
     for est, (meas, bbox, outline) in zip(estimates, measured):
         if not est:
             refused.append(Refusal(bbox, f"{est.method}: {est.reason}"))

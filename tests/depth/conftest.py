@@ -35,26 +35,35 @@ class MirrorRig:
         return Cube(size, c, rot)
 
     def measure(self, cube, n=50, noise_px=0.0, seed=0):
-        """Exact (or noisy) FaceMeasurement of the cube's front face."""
-        _, corners, _ = cube.front_face(self.mirror)
+        """Exact (or noisy) FaceMeasurement of the cube's front face, with the silhouette of its back
+        vertical edges where a side face shows (more than 0.75 px beyond the front face)."""
+        _, corners, centre = cube.front_face(self.mirror)
+        n_out = (centre - cube.center) / np.linalg.norm(centre - cube.center)
         t = np.linspace(0.08, 0.92, n)[:, None]
-        px = [reflection_pixels(self.camera, self.mirror, corners[i] * (1 - t) + corners[(i + 1) % 4] * t)[0]
-              for i in range(4)]
+        edges = [corners[i] * (1 - t) + corners[(i + 1) % 4] * t for i in range(4)]
+        px = [reflection_pixels(self.camera, self.mirror, e)[0] for e in edges]
+        back = [reflection_pixels(self.camera, self.mirror, e - cube.size * n_out)[0] for e in edges]
+        rng = np.random.default_rng(seed)
         if noise_px:
-            rng = np.random.default_rng(seed)
             px = [p + rng.normal(0, noise_px, p.shape) for p in px]
+            back = [p + rng.normal(0, noise_px, p.shape) for p in back]
         pairs = [(0, 2), (1, 3)]
         du = [abs(px[i][:, 0].mean() - px[j][:, 0].mean()) for i, j in pairs]
         lr, tb = pairs[int(np.argmax(du))], pairs[1 - int(np.argmax(du))]
-        left, right = sorted([px[lr[0]], px[lr[1]]], key=lambda p: p[:, 0].mean())
+        il, ir = sorted(lr, key=lambda i: px[i][:, 0].mean())
         top, bottom = sorted([px[tb[0]], px[tb[1]]], key=lambda p: p[:, 1].mean())
+        back_sides = []
+        for i, sign in ((il, -1.0), (ir, 1.0)):
+            gap = sign * (back[i][:, 0] - px[i][:, 0])
+            back_sides.append(back[i] if np.median(gap) > 0.75 else None)
         outline = np.concatenate(px)
         lo, hi = np.floor(outline.min(0)), np.ceil(outline.max(0))
         gu, gv = np.meshgrid(np.arange(lo[0], hi[0] + 1), np.arange(lo[1], hi[1] + 1))
         grid = np.column_stack([gu.ravel(), gv.ravel()])
         inside = Path(outline).contains_points(grid)
         corners_px = reflection_pixels(self.camera, self.mirror, corners)[0]
-        return FaceMeasurement((left, right, top, bottom), corners_px, grid[inside], max(noise_px, 0.0))
+        return FaceMeasurement((px[il], px[ir], top, bottom), corners_px, grid[inside], max(noise_px, 0.0),
+                               back_sides_px=tuple(back_sides))
 
     def depth(self, cube):
         return float(self.mirror.distance_to_axis(cube.center[None])[0])
