@@ -232,9 +232,10 @@ class CubeConfig:
 
     @property
     def rotation(self) -> np.ndarray:
-        """(3, 3) float64 rotation matrix: scipy Rotation.from_euler("xyz", rotation_deg, degrees=True)."""
-        from scipy.spatial.transform import Rotation
-        return Rotation.from_euler("xyz", self.rotation_deg, degrees=True).as_matrix()
+        """(3, 3) float64 rotation matrix equal to scipy's Rotation.from_euler("xyz", rotation_deg,
+        degrees=True) (extrinsic x, then y, then z: Rz·Ry·Rx), written out because importing
+        scipy.spatial costs 0.3 s of every command's start-up."""
+        return euler_xyz_matrix(self.rotation_deg)
 
     def build(self):
         """The `raytrace.scene.Cube` of this config."""
@@ -270,6 +271,16 @@ class SceneConfig:
     def to_dict(self) -> dict:
         return {"background": list(self.background), "ground": self.ground,
                 "light_direction": list(self.light_direction), "ambient": self.ambient}
+
+
+def euler_xyz_matrix(angles_deg) -> np.ndarray:
+    """Rz(γ)·Ry(β)·Rx(α) for extrinsic "xyz" angles (α, β, γ) in degrees : (3, 3) float64."""
+    a, b, g = np.deg2rad(np.asarray(angles_deg, dtype=np.float64))
+    ca, sa, cb, sb, cg, sg = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(g), np.sin(g)
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, ca, -sa], [0.0, sa, ca]])
+    ry = np.array([[cb, 0.0, sb], [0.0, 1.0, 0.0], [-sb, 0.0, cb]])
+    rz = np.array([[cg, -sg, 0.0], [sg, cg, 0.0], [0.0, 0.0, 1.0]])
+    return rz @ ry @ rx
 
 
 MIRROR_TYPES: dict[str, type] = {"cylinder": CylinderConfig}

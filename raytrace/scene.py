@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import trimesh
+
 
 from ._validate import as_positive, as_rotation, as_unit, as_vector
 from .errors import RaytraceError
@@ -91,13 +91,14 @@ class Cube:
         """(4, 3) world corners of face `face`, CCW about its outward normal (see `front_face`)."""
         return self.center + (_face_corners_local(face) * self.size) @ self.rotation.T
 
-    def mesh(self) -> trimesh.Trimesh:
+    def mesh(self) -> "trimesh.Trimesh":
         """12 triangles; triangles 2f and 2f+1 make face f, wound outward."""
         tris = []
         for f in range(6):
             c = self.face_corners(f)
             tris += [c[[0, 1, 2]], c[[0, 2, 3]]]
         tris = np.asarray(tris)
+        import trimesh  # only here: importing trimesh costs 0.7 s of every command's start-up
         return trimesh.Trimesh(tris.reshape(-1, 3), np.arange(36).reshape(12, 3), process=False)
 
     def front_face(self, mirror) -> tuple[int, np.ndarray, np.ndarray]:
@@ -170,11 +171,12 @@ class GroundPlane:
         ij = np.floor(self.plane_coords(points) / self.checker).astype(np.int64)
         return (ij[:, 0] + ij[:, 1]) & 1
 
-    def mesh(self) -> trimesh.Trimesh:
+    def mesh(self) -> "trimesh.Trimesh":
         """Two triangles covering the square, wound toward `normal`."""
         e1, e2 = self.basis * (self.extent / 2)
         p = self.point
         v = np.array([p - e1 - e2, p + e1 - e2, p + e1 + e2, p - e1 + e2])
+        import trimesh
         return trimesh.Trimesh(v, [[0, 1, 2], [0, 2, 3]], process=False)
 
 

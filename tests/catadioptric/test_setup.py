@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 from scipy.spatial.transform import Rotation
 
 from catadioptric.errors import SetupError
@@ -101,3 +102,11 @@ def test_missing_mirror_file_and_invalid_toml(tmp_path, valid_setup, write_setup
 def test_registries_are_keyed_by_type():
     assert setup_mod.MIRROR_TYPES["cylinder"] is setup_mod.CylinderConfig
     assert setup_mod.OBJECT_TYPES["cube"] is setup_mod.CubeConfig
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.tuples(*[st.floats(-360.0, 360.0)] * 3))
+def test_rotation_is_scipys_extrinsic_xyz_euler(angles):
+    from catadioptric.setup import euler_xyz_matrix
+    np.testing.assert_allclose(euler_xyz_matrix(angles),
+                               Rotation.from_euler("xyz", angles, degrees=True).as_matrix(), atol=1e-12)
