@@ -1,0 +1,124 @@
+"""Tests of `catadioptric reconstruct`: the result contract, the overlay, and every bad input."""
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from catadioptric.cli import main
+
+CONTRACT_KEYS = {"center", "size", "depth", "front_face_center", "front_face_corners_px", "aspect_ratio",
+                 "method", "uncertainty"}
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    """A 640×480 render of two 4 cm cubes facing the mirror axis, with its truth."""
+    import tomli_w
+    folder = tmp_path_factory.mktemp("rec")
+    setup = {
+        "camera": {"resolution": [640, 480], "focal_px": [1400.0, 1400.0], "position": [0.0, 0.0, 0.55],
+                   "look_at": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0]},
+        "mirror": {"type": "cylinder", "radius": 0.1, "height": 0.49, "center": [0.0, 0.0, 0.0],
+                   "axis": [0.0, 1.0, 0.0]},
+        "objects": [],
+    }
+    for r, az, color in ((0.35, -30.0, [0.85, 0.1, 0.1]), (0.5, 20.0, [0.1, 0.2, 0.85])):
+        a = np.deg2rad(az)
+        x, z = r * np.sin(a), r * np.cos(a)
+        setup["objects"].append({"type": "cube", "size": 0.04, "center": [x, 0.0, z],
+                                 "rotation_deg": [0.0, float(np.rad2deg(np.arctan2(-x, -z))), 0.0], "color": color})
+    path = folder / "in.toml"
+    path.write_text(tomli_w.dumps(setup))
+    assert main(["simulate", str(path), "-o", str(folder / "mirror.png")]) == 0
+    return folder
+
+
+def test_result_follows_the_contract_and_is_accurate(scene, capsys):
+    capsys.readouterr()
+    out = scene / "r.json"
+    assert main(["reconstruct", str(scene / "mirror.png"), "-o", str(out), "--overlay", str(scene / "ov.png")]) == 0
+    printed = capsys.readouterr().out
+    assert "centre err" in printed  # the truth beside the image adds error columns
+    result = json.loads(out.read_text())
+    truth = json.loads((scene / "mirror.truth.json").read_text())
+    assert result["image"] == "mirror.png" and result["setup"] == "mirror.toml"
+    assert len(result["cubes"]) == 2
+    for cube in result["cubes"]:
+        assert CONTRACT_KEYS <= set(cube)
+        assert cube["method"] == "exact" and cube["uncertainty"]["depth"] > 0
+        t = min(truth["cubes"], key=lambda t: np.linalg.norm(np.subtract(t["center"], cube["center"])))
+        # 640×480 renders: faces 20–30 px wide; a few percent at most
+        assert np.linalg.norm(np.subtract(cube["center"], t["center"])) / t["depth"] < 0.05
+        assert cube["size"] == pytest.approx(0.04, rel=0.05)
+        assert cube["depth"] == pytest.approx(np.hypot(cube["center"][0], cube["center"][2]), rel=1e-9)
+    overlay = cv2.imread(str(scene / "ov.png"))
+    assert overlay.shape == (480, 640, 3)
+    b, g, r = overlay[..., 0].astype(int), overlay[..., 1].astype(int), overlay[..., 2].astype(int)
+    assert np.count_nonzero((r > 200) & (g > 200) & (b < 100)) > 50  # the yellow face outlines
+
+
+@pytest.mark.parametrize("method", ["ddar", "shape_prior"])
+def test_other_methods_run(scene, method):
+    out = scene / f"{method}.json"
+    assert main(["reconstruct", str(scene / "mirror.png"), "--method", method, "-o", str(out)]) == 0
+    cubes = json.loads(out.read_text())["cubes"]
+    assert len(cubes) == 2 and all(c["method"] == method for c in cubes)
+
+
+def _bad(capsys, tmp_path, argv, message):
+    before = sorted(p.name for p in tmp_path.iterdir())
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 1, err
+    assert err.count("\n") == 1 and "Traceback" not in err and message in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_bad_inputs_exit_1_with_one_line_and_write_nothing(scene, capsys, tmp_path):
+    img = cv2.imread(str(scene / "mirror.png"))
+    setup = scene / "mirror.toml"
+    out = str(tmp_path / "o.json")
+    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "nope.png"), "--setup", str(setup), "-o", out],
+         "nope.png: no such image file")
+    cv2.imwrite(str(tmp_path / "small.png"), img[:100, :100])
+    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "small.png"), "--setup", str(setup), "-o", out],
+         "expected 640×480 pixels")
+    cv2.imwrite(str(tmp_path / "gray.png"), cv2.cvtColor(img, cv2.COLOR_BGR2GRAY))
+    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "gray.png"), "--setup", str(setup), "-o", out],
+         "grayscale")
+    cv2.imwrite(str(tmp_path / "deep.png"), img.astype(np.uint16) * 257)
+    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "deep.png"), "--setup", str(setup), "-o", out],
+         "expected an 8-bit image, got 16-bit")
+    cv2.imwrite(str(tmp_path / "blank.png"), np.full_like(img, 128))
+    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "blank.png"), "--setup", str(setup), "-o", out],
+         "no mirror content")
+    (tmp_path / "junk.png").write_bytes(b"not an image")
+    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "junk.png"), "--setup", str(setup), "-o", out],
+         "cannot read the image")
+    import tomllib
+    import tomli_w
+    d = tomllib.loads(setup.read_text())
+    del d["mirror"]
+    nomirror = tmp_path / "nomirror.toml"
+    nomirror.write_text(tomli_w.dumps(d))
+    _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--setup", str(nomirror), "-o", out],
+         "mirror: missing table [mirror]")
+    _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--method", "magic", "-o", out],
+         "--method: expected one of")
+    _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--cube-size", "-1", "-o", out],
+         "--cube-size: expected a positive edge length")
+
+
+def test_image_without_cubes_says_so(scene, capsys, tmp_path):
+    # The mirror region with the cubes painted over by the background: nothing to find, not an error.
+    img = cv2.imread(str(scene / "mirror.png"))
+    hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
+    cubes = cv2.dilate((hsv[..., 1] > 40).astype(np.uint8), np.ones((7, 7), np.uint8)) > 0
+    img[cubes] = (178, 178, 178)
+    cv2.imwrite(str(tmp_path / "empty.png"), img)
+    out = tmp_path / "e.json"
+    assert main(["reconstruct", str(tmp_path / "empty.png"), "--setup", str(scene / "mirror.toml"), "-o", str(out)]) == 0
+    assert "no cube found" in capsys.readouterr().out
+    assert json.loads(out.read_text())["cubes"] == []
