@@ -22,9 +22,8 @@ import numpy as np
 
 from raytrace._embree import build_scene
 from raytrace.camera import PinholeCamera, sample_offsets
-from raytrace.mirror import CylinderMirror, reflect
+from raytrace.mirror import reflect
 from raytrace.render import render
-from raytrace.scene import Cube, DirectionalLight, Scene
 
 SPP = 4
 REPEAT = 3

@@ -14,7 +14,7 @@ import numpy as np
 
 from catadioptric.errors import CatadioptricError
 from catadioptric.outputs import OutputSet
-from catadioptric.setup import Setup, load_setup
+from catadioptric.setup import load_setup
 
 __all__ = ["read_image", "default_setup_path", "run_reconstruction", "result_dict", "draw_overlay",
            "print_table", "write_outputs"]

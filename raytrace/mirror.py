@@ -7,9 +7,14 @@ hit (`CylinderMirror.first_hits` is the renderer's analytic fast path). `MIRRORS
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from dataclasses import dataclass, field
 
 import numpy as np
+
+if TYPE_CHECKING:  # trimesh is imported where meshes are made: it costs 0.7 s of start-up
+    import trimesh
 
 from ._embree import build_scene, first_hits
 from ._validate import as_positive, as_rays, as_unit, as_vector

@@ -7,9 +7,14 @@ renderer uses to refine and shade those hits in float64.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from dataclasses import dataclass, field
 
 import numpy as np
+
+if TYPE_CHECKING:  # trimesh is imported where meshes are made: it costs 0.7 s of start-up
+    import trimesh
 
 
 from ._validate import as_positive, as_rotation, as_unit, as_vector

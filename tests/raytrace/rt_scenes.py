@@ -1,6 +1,5 @@
 """Small shared scenes for the raytrace tests: `small_camera`, `cylinder`, `three_cubes`."""
 
-import numpy as np
 
 from raytrace.camera import PinholeCamera
 from raytrace.mirror import CylinderMirror

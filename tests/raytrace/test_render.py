@@ -2,12 +2,11 @@
 
 import numpy as np
 import pytest
-from rt_scenes import cylinder, mirror_scene, small_camera, three_cubes
+from rt_scenes import cylinder, mirror_scene, small_camera
 
 import raytrace.render as rr
 from raytrace.camera import PinholeCamera, XSlitCamera
 from raytrace.errors import RaytraceError
-from raytrace.mirror import CylinderMirror
 from raytrace.scene import Cube, DirectionalLight, GroundPlane, Scene
 from raytrace.truth import cylinder_reflection_points, mirror_rays
 from raytrace.render import linear_to_srgb8, render
