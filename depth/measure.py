@@ -805,6 +805,10 @@ def _bilinear(img: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return out.reshape(u.shape + (3,))
 
 
+_MIN_TB_POINTS = 3  # fewest edge points fitted on a top or bottom side (a line through them)
+_MIN_CORNER_MARGIN = 1.25  # px; nearer a corner, a top/bottom profile reaches across the left/right side
+
+
 def _side_samples(lines, quads, corners, margin, spacing):
     """Points and outward normals along the current side model, corners excluded."""
     tl, tr, br, bl = corners
@@ -818,7 +822,16 @@ def _side_samples(lines, quads, corners, margin, spacing):
         nrm.append(n)
     for i, (left, right, sign) in enumerate([(tl, tr, -1.0), (bl, br, 1.0)]):
         qa, qb, qc = quads[i]
-        u = np.arange(left[0] + margin, right[0] - margin + 1e-9, spacing)
+        u0, u1 = left[0] + margin, right[0] - margin
+        if u1 - u0 < (_MIN_TB_POINTS + 1) * spacing:
+            # a narrow face: come closer to the corners (not nearer than the profile's reach
+            # across the other side) and sample densely, so that the top/bottom still get points
+            m = min(margin, max(_MIN_CORNER_MARGIN, 0.5 * (right[0] - left[0]) - 1.0))
+            u0, u1 = left[0] + m, right[0] - m
+            n = max(int(np.floor((u1 - u0) / 0.5)) + 1, 1)
+            u = np.linspace(u0, u1, n) if n > 1 else np.array([0.5 * (u0 + u1)])
+        else:
+            u = np.arange(u0, u1 + 1e-9, spacing)
         v = (qa * u + qb) * u + qc
         slope = 2 * qa * u + qb
         n = sign * np.stack([-slope, np.ones_like(u)], axis=1) / np.hypot(1.0, slope)[:, None]
@@ -863,13 +876,14 @@ def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25):
     return area - half_width, contrast
 
 
-def _refine(linear, model, half_width, margin, min_contrast, min_points, spacing):
+def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing):
     lines, quads, corners = model[:3]
     pts, nrm = _side_samples(lines, quads, corners, margin, spacing)
     h, w = linear.shape[:2]
     new_lines, new_quads, sides, normals, rms, contrast, residuals = [], [], [], [], [], [], []
     for i, (p, n) in enumerate(zip(pts, nrm)):
         name = SIDE_NAMES[i]
+        min_points = min_lr if i < 2 else min(min_lr, _MIN_TB_POINTS)
         inside = (
             (p[:, 0] - half_width >= 0) & (p[:, 0] + half_width <= w - 1)
             & (p[:, 1] - half_width >= 0) & (p[:, 1] + half_width <= h - 1)
@@ -892,7 +906,8 @@ def _refine(linear, model, half_width, margin, min_contrast, min_points, spacing
             new_lines.append(coef)
             nn = np.sign(n[good, 0:1]) * np.stack([np.ones_like(slope), -slope], axis=1) / np.hypot(1.0, slope)[:, None]
         else:
-            degree = 2 if len(q) >= 7 else 1
+            # a curve only where the side is long enough for its bend to be measured
+            degree = 2 if len(q) >= 7 and np.ptp(q[:, 0]) >= 8.0 else 1
             coef, keep = _robust_polyfit(q[:, 0], q[:, 1], degree)
             coef = np.r_[np.zeros(3 - len(coef)), coef]
             slope = 2 * coef[0] * q[:, 0] + coef[1]

@@ -435,3 +435,17 @@ def test_touching_cubes_of_the_same_colour_are_refused():
     assert len(detections) == 1
     assert not detections[0].usable
     assert "same colour" in detections[0].reason
+
+
+@pytest.mark.parametrize("background", ["checker", "grey"])
+@pytest.mark.parametrize("width", [5.0, 6.3, 7.7])
+def test_narrow_faces_are_outlined_with_few_top_and_bottom_points(width, background):
+    """Faces 5–8 px wide (far cubes) leave room for only a few top/bottom edge points."""
+    c = FakeCube((60.3, 30.6), (60.3 + width, 31.0), (60.9 + width, 140.2), (60.8, 139.7),
+                 side="left", side_width=3.0, albedo=COLOURS["blue"])
+    image, mirror = make_image((170, 120), [c], background=background)
+    (d,) = match(detect_cubes(image, mirror), [c])
+    o = face_outline(image, d.front_face_mask)
+    assert o, getattr(o, "reason", "")
+    assert 3 <= len(o.sides[2]) and 3 <= len(o.sides[3])
+    assert corner_errors(o, c).max() <= 0.1
