@@ -69,7 +69,13 @@ def test_demo_recovers_the_true_depths_of_the_small_setup(small_demo):
     true_depths = np.array([c["depth"] for c in run.truth["cubes"]])
     for c in run.result["cubes"]:
         nearest = true_depths[np.argmin(np.abs(true_depths - c["depth"]))]
-        assert abs(c["depth"] / nearest - 1) < 0.05  # a 320×240 image: a few per cent at most
+        width_px = c["bbox_px"][2] - c["bbox_px"][0]
+        if width_px >= 10:
+            assert abs(c["depth"] / nearest - 1) < 0.05  # a 320×240 image: a few per cent at most
+        else:
+            # A face under 10 px wide (0.1 px of edge error is ~3 % of depth): once refused, now
+            # measured; its reported uncertainty must cover the truth.
+            assert abs(c["depth"] - nearest) < 3 * c["uncertainty"]["depth"]
 
 
 def test_demo_verb_prints_tables_and_the_report_path(tmp_path, capsys, monkeypatch):
