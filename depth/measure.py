@@ -113,6 +113,11 @@ class FaceOutline:
         Rms normal distance over all sides: the per-point edge uncertainty.
     contrast : (4,) float64
         Median linear-RGB contrast |c_in − c_out| across each side.
+    strip_px : (4,) float64
+        Width of a thin outer strip (a side, top or bottom face of another brightness) found
+        beyond each side by the edge-spread-function pass, 0 where the side is a single step.
+        The face's side is the strip's inner edge; for left/right the outer edge is the cube's
+        silhouette (see `silhouette_sides`).
     """
 
     sides: list[np.ndarray]
@@ -123,6 +128,7 @@ class FaceOutline:
     side_rms_px: np.ndarray
     edge_noise_px: float
     contrast: np.ndarray
+    strip_px: np.ndarray = field(default_factory=lambda: np.zeros(4))
 
     def __bool__(self) -> bool:
         return True
@@ -639,6 +645,10 @@ def face_outline(
     the edge is put where the area under the normalised profile says the step is (exact
     for an area-sampled step edge); the sides are refitted robustly (lines u = a·v + b
     for left/right, quadratics v = a·u² + b·u + c for top/bottom) and intersected.
+    Finally (twice) each side's pixels within ±4 px are pooled into an edge-spread function
+    against their distance to the fitted side; where it shows two steps (face → thin strip →
+    outside, which the per-point area estimate would average), the side and its edge points
+    are moved to the inner step (`FaceOutline.strip_px` says which sides).
 
     Parameters
     ----------
@@ -679,6 +689,9 @@ def face_outline(
         if isinstance(result, FailedMeasurement):
             return result
         model = result
+    strip = np.zeros(4)
+    for _ in range(2):
+        model, strip = _esf_pass(linear, model, min_contrast)
     lines, quads, corners, sides, normals, rms, contrast, residuals = model
     all_res = np.concatenate(residuals)
     return FaceOutline(
@@ -690,6 +703,7 @@ def face_outline(
         side_rms_px=rms,
         edge_noise_px=float(np.sqrt(np.mean(all_res**2))),
         contrast=contrast,
+        strip_px=strip,
     )
 
 
@@ -926,6 +940,266 @@ def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing):
     if isinstance(corners, FailedMeasurement):
         return corners
     return lines_arr, quads_arr, corners, sides, normals, np.array(rms), np.array(contrast), residuals
+
+
+# ------------------------------------------------------------ edge-spread-function pass
+
+_ESF_BIN_PX = 0.1  # bin width of the pooled edge-spread function
+_ESF_OUT_PX = 4.5  # outer reach of the band around a side
+_ESF_MAX_STRIP_PX = 3.5  # widest outer strip looked for
+_ESF_MIN_STRIP_CONTRAST = 0.01  # a strip differs from the face and the outside by this (of face − outside)
+_ESF_MIN_STRIP_PX = 0.5  # narrowest strip believed
+_ESF_MIN_GAIN = 0.1  # the two-step model must remove this fraction of the one-step misfit
+
+
+def _ramp_cdf(x: np.ndarray, p: float, q: float) -> np.ndarray:
+    """Covered fraction of a pixel whose centre lies x inside a straight edge.
+
+    The unit pixel projected on the edge normal (|n_u| = p, |n_v| = q, p ≥ q) is the sum of
+    two uniform widths p and q: its cumulative distribution (a ramp with rounded ends)."""
+    s = np.clip(x + 0.5 * (p + q), 0.0, p + q)
+    if q < 1e-3:
+        return s / p
+    return np.where(s < q, s * s / (2 * p * q),
+                    np.where(s <= p, (s - 0.5 * q) / p, 1.0 - (p + q - s) ** 2 / (2 * p * q)))
+
+
+def _side_band(lines, quads, corners, i, shape, inner, outer, margin):
+    """Pixels within the band [−inner, outer] (outward distance) of side i, corners excluded.
+
+    Returns (u, v, d, t, n): integer pixel coordinates (K,), signed outward distance d (K,)
+    to the fitted side, coordinate t along the side (K,) and the mean outward normal (2,)."""
+    h, w = shape
+    tl, tr, br, bl = corners
+    if i < 2:
+        a, b = lines[i]
+        sign = -1.0 if i == 0 else 1.0
+        top, bot = (tl, bl) if i == 0 else (tr, br)
+        vs = np.arange(int(np.ceil(top[1] + margin)), int(np.floor(bot[1] - margin)) + 1)
+        reach = int(np.ceil(max(inner, outer))) + 1
+        du = np.arange(-reach, reach + 1)
+        v = np.repeat(vs, len(du))
+        u = (np.rint(a * vs + b)[:, None] + du[None, :]).ravel().astype(int)
+        norm = np.hypot(1.0, a)
+        d = sign * (u - (a * v + b)) / norm
+        t = v.astype(np.float64)
+        n = sign * np.array([1.0, -a]) / norm
+    else:
+        qa, qb, qc = quads[i - 2]
+        sign = -1.0 if i == 2 else 1.0
+        left, right = (tl, tr) if i == 2 else (bl, br)
+        us = np.arange(int(np.ceil(left[0] + margin)), int(np.floor(right[0] - margin)) + 1)
+        reach = int(np.ceil(max(inner, outer))) + 1
+        dv = np.arange(-reach, reach + 1)
+        u = np.repeat(us, len(dv))
+        v = (np.rint((qa * us + qb) * us + qc)[:, None] + dv[None, :]).ravel().astype(int)
+        slope = 2 * qa * u + qb
+        d = sign * (v - ((qa * u + qb) * u + qc)) / np.hypot(1.0, slope)
+        t = u.astype(np.float64)
+        sm = 2 * qa * np.mean(us) + qb if len(us) else qb
+        n = sign * np.array([-sm, 1.0]) / np.hypot(1.0, sm)
+    keep = (d >= -inner) & (d <= outer) & (u >= 0) & (u < w) & (v >= 0) & (v < h)
+    return u[keep], v[keep], d[keep], t[keep], n
+
+
+def _level_along(linear, t_st, foot, n, dist):
+    """Colour sampled at distance `dist` along n from foot points (S, 2), median over 5 stations."""
+    c = _bilinear(linear, foot[:, 0] + dist * n[0], foot[:, 1] + dist * n[1])
+    if len(c) >= 5:
+        c = ndimage.median_filter(c, size=(5, 1), mode="nearest")
+    return c
+
+
+def _fit_one_step(pos, wts, ybar, e_grid, scale, p, q):
+    """Least-squares f = α + β·A((e − d)/scale) on the bins for each e of e_grid: (sse, α, β)."""
+    A = _ramp_cdf((e_grid[:, None] - pos[None, :]) / scale, p, q)
+    S0, S1, S11 = wts.sum(), A @ wts, (A * A) @ wts
+    F0, F1 = float(wts @ ybar[:, 0]), A @ (wts * ybar[:, 0])
+    det = S0 * S11 - S1 * S1
+    safe = np.where(np.abs(det) > 1e-12, det, 1.0)
+    al = (S11 * F0 - S1 * F1) / safe
+    be = (S0 * F1 - S1 * F0) / safe
+    total = float(np.sum(wts[:, None] * ybar**2))
+    return total - (al * F0 + be * F1), al, be
+
+
+def _fit_two_steps(pos, wts, ybar, E, W, scale, p, q):
+    """Least squares of face | strip | outside on the bins for each (e, w): (sse, coef (G, 3), ρ (G, 3)).
+
+    f = α + β·A_f + φ·A_s and r = ρ·A_s, A_f = A((e − d)/scale), A_o = A((d − e − w)/scale),
+    A_s = 1 − A_f − A_o."""
+    Af = _ramp_cdf((E[:, None] - pos[None, :]) / scale, p, q)
+    Ao = _ramp_cdf((pos[None, :] - (E + W)[:, None]) / scale, p, q)
+    As = 1.0 - Af - Ao
+    wAf, wAs = Af * wts, As * wts
+    G = np.empty((len(E), 3, 3))
+    G[:, 0, 0] = wts.sum()
+    G[:, 0, 1] = G[:, 1, 0] = wAf.sum(1)
+    G[:, 0, 2] = G[:, 2, 0] = wAs.sum(1)
+    G[:, 1, 1] = (wAf * Af).sum(1)
+    G[:, 1, 2] = G[:, 2, 1] = (wAf * As).sum(1)
+    G[:, 2, 2] = (wAs * As).sum(1)
+    rhs = np.stack([np.full(len(E), float(wts @ ybar[:, 0])), wAf @ ybar[:, 0], wAs @ ybar[:, 0]], axis=1)
+    G += np.eye(3)[None] * 1e-9
+    coef = np.linalg.solve(G, rhs[..., None])[..., 0]
+    sse_f = float(wts @ ybar[:, 0] ** 2) - np.sum(coef * rhs, axis=1)
+    Rr = wAs @ ybar[:, 1:]
+    rho = Rr / G[:, 2, 2][:, None]
+    sse_r = float(np.sum(wts[:, None] * ybar[:, 1:] ** 2)) - np.sum(rho * Rr, axis=1)
+    return sse_f + sse_r, coef, rho
+
+
+_ESF_SCALES = np.arange(0.5, 1.81, 0.1)  # ramp widths tried (px): sharper or blurred optics
+
+
+def _esf_side(linear, lines, quads, corners, i, inner, margin, min_contrast):
+    """Edge offset of side i from its pooled edge-spread function, or None when not measurable.
+
+    Returns (e, w, e_one): the face edge's outward offset e (px) from the fitted side, the width w
+    of an outer strip (0 when one step explains the profile) and the one-step edge e_one.
+
+    Pixels in the band around the side are reduced to a face-ness f (projection of the colour on
+    c_face − c_out, both measured per station along the side: 1 on the face, 0 outside) and the
+    normalised colour left over r (3,), non-zero only for a third colour. Binned against their
+    outward distance d, (f, r) is fitted with one step (f = α + β·A((e − d)/s), A the covered
+    fraction of a pixel, s the ramp width) and with two steps (face | strip of width w and free
+    colour | outside); when the second model explains clearly more, the face edge is the inner step."""
+    h, w = linear.shape[:2]
+    u, v, d, t, n = _side_band(lines, quads, corners, i, (h, w), inner, _ESF_OUT_PX, margin)
+    if len(u) < 40:
+        return None
+    # per-station reference colours, interpolated to each pixel by its position along the side
+    t_st = np.unique(np.round(t))
+    if i < 2:
+        a, b = lines[i]
+        foot = np.stack([a * t_st + b, t_st], axis=1)
+    else:
+        qa, qb, qc = quads[i - 2]
+        foot = np.stack([t_st, (qa * t_st + qb) * t_st + qc], axis=1)
+    c_in = _level_along(linear, t_st, foot, n, -inner)
+    c_out = _level_along(linear, t_st, foot, n, _ESF_OUT_PX + 0.5)
+    k = np.clip(np.searchsorted(t_st, t), 0, len(t_st) - 1)
+    delta = (c_in - c_out)[k]
+    dd = np.sum(delta * delta, axis=1)
+    ok = dd >= min_contrast**2
+    if ok.sum() < 40:
+        return None
+    colour = linear[v[ok], u[ok]] - c_out[k[ok]]
+    delta, dd, d = delta[ok], dd[ok], d[ok]
+    f = np.sum(colour * delta, axis=1) / dd
+    r = (colour - f[:, None] * delta) / np.sqrt(dd)[:, None]
+    y = np.concatenate([f[:, None], r], axis=1)  # (K, 4)
+
+    # bins of the pooled profile (mean position, mean value, count)
+    idx = np.floor((d + inner) / _ESF_BIN_PX).astype(int)
+    nb = int(idx.max()) + 1
+    cnt = np.bincount(idx, minlength=nb).astype(np.float64)
+    used = cnt > 0
+    if used.sum() < 6:
+        return None
+    inv = np.cumsum(used) - 1
+    cnt = cnt[used]
+    pos = np.bincount(idx, weights=d, minlength=nb)[used] / cnt
+    ybar = np.stack([np.bincount(idx, weights=y[:, j], minlength=nb)[used] for j in range(4)], 1) / cnt[:, None]
+    # pixel scatter about the bin means: the noise variance of one pixel's (f, r)
+    noise_var = float(np.sum((y - ybar[inv[idx]]) ** 2) / max(len(y) - len(cnt), 1))
+    wts = cnt
+    p, q = sorted((abs(n[0]), abs(n[1])), reverse=True)
+
+    lo, hi = -min(inner - 0.6, 2.5), 2.0
+    e_grid = np.arange(lo, hi + 1e-9, 0.05)
+    # one step, with the ramp width that fits best
+    best = None
+    # the ramp's width is measurable only when the pixels sample many phases of the edge
+    phases = np.unique(np.floor(np.mod(pos, 1.0) / 0.1)).size
+    for s in (_ESF_SCALES if phases >= 6 else (1.0,)):
+        sse, al, be = _fit_one_step(pos, wts, ybar, e_grid, s, p, q)
+        g = int(np.argmin(sse))
+        if best is None or sse[g] < best[0]:
+            best = (float(sse[g]), g, s, sse, be[g])
+    sse1, g1, scale, sse_curve, be1 = best
+    if g1 == 0 or g1 == len(e_grid) - 1 or be1 < 0.5:
+        return None
+    e_one = _parabola_min(e_grid, sse_curve, g1)
+
+    # two steps: face | strip | outside, coarse grid then fine
+    E, W = np.meshgrid(np.arange(lo, hi + 1e-9, 0.1), np.arange(0.3, _ESF_MAX_STRIP_PX + 1e-9, 0.1), indexing="ij")
+    E, W = E.ravel(), W.ravel()
+    keep = (E <= 1.0) & (E + W <= _ESF_OUT_PX - 1.0)  # the outer step and the outside inside the band
+    E, W = E[keep], W[keep]
+    sse2, coef, rho = _fit_two_steps(pos, wts, ybar, E, W, scale, p, q)
+    g = int(np.argmin(sse2))
+    E, W = np.meshgrid(E[g] + np.arange(-0.1, 0.101, 0.02), W[g] + np.arange(-0.1, 0.101, 0.02), indexing="ij")
+    E, W = E.ravel(), W.ravel()
+    keep = W >= 0.2
+    E, W = E[keep], W[keep]
+    sse2, coef, rho = _fit_two_steps(pos, wts, ybar, E, W, scale, p, q)
+    g2 = int(np.argmin(sse2))
+    gain = sse1 - float(sse2[g2])
+    al2, be2, ph2 = coef[g2]
+    face_lvl = np.r_[al2 + be2, 0, 0, 0]
+    out_lvl = np.r_[al2, 0, 0, 0]
+    strip_lvl = np.r_[al2 + ph2, rho[g2]]
+    contrast = min(np.linalg.norm(strip_lvl - face_lvl), np.linalg.norm(strip_lvl - out_lvl))
+    accept = (gain > max(_ESF_MIN_GAIN * sse1, 40.0 * noise_var) and contrast >= _ESF_MIN_STRIP_CONTRAST * be2
+              and be2 > 0.5 and W[g2] >= _ESF_MIN_STRIP_PX and E[g2] <= e_one - 0.15)
+    if accept and phases < 6:
+        # one sample per pixel across the side: a mixed pixel and a strip of a colour between the
+        # face's and the outside's look alike; believe a strip only when its colour is off that
+        # line and it fills at least a pixel
+        accept = W[g2] >= 1.0 and np.linalg.norm(rho[g2]) >= 0.03 * be2
+    if accept:
+        return float(E[g2]), float(W[g2]), e_one
+    return e_one, 0.0, e_one
+
+
+def _parabola_min(x: np.ndarray, y: np.ndarray, k: int) -> float:
+    """Sub-grid minimum of y(x) at index k from a parabola through its neighbours."""
+    if k <= 0 or k >= len(x) - 1:
+        return float(x[k])
+    y0, y1, y2 = y[k - 1], y[k], y[k + 1]
+    den = y0 - 2 * y1 + y2
+    if den <= 0:
+        return float(x[k])
+    return float(x[k] + 0.5 * (x[k + 1] - x[k]) * (y0 - y2) / den)
+
+
+def _esf_pass(linear, model, min_contrast, margin=2.5):
+    """Shift each side of a refined model to its edge found by `_esf_side`.
+
+    Returns (model, strip_px (4,)) with the sides' lines/quadratics shifted along their normals,
+    the edge points moved by the same offsets, and the corners recomputed."""
+    lines, quads, corners, sides, normals, rms, contrast, residuals = model
+    lines, quads = lines.copy(), quads.copy()
+    tl, tr, br, bl = corners
+    width = 0.5 * ((tr[0] - tl[0]) + (br[0] - bl[0]))
+    height = 0.5 * ((bl[1] - tl[1]) + (br[1] - tr[1]))
+    strip = np.zeros(4)
+    new_sides = list(sides)
+    for i in range(4):
+        span = width if i < 2 else height
+        inner = float(np.clip(0.5 * span + 0.5, 1.5, 4.0))
+        res = _esf_side(linear, model[0], model[1], corners, i, inner, margin, min_contrast)
+        if res is None:
+            continue
+        e, ws, e_one = res
+        if ws <= 0:  # one step: the per-point area estimate is already exact
+            continue
+        strip[i] = ws
+        if i < 2:
+            a = lines[i, 0]
+            sign = -1.0 if i == 0 else 1.0
+            lines[i, 1] += sign * e * np.hypot(1.0, a)
+        else:
+            qa, qb, _ = quads[i - 2]
+            sign = -1.0 if i == 2 else 1.0
+            um = 0.5 * (corners[0, 0] + corners[1, 0]) if i == 2 else 0.5 * (corners[2, 0] + corners[3, 0])
+            quads[i - 2, 2] += sign * e * np.hypot(1.0, 2 * qa * um + qb)
+        new_sides[i] = sides[i] + e * normals[i]
+    new_corners = _corners(lines, quads)
+    if isinstance(new_corners, FailedMeasurement):
+        return model, np.zeros(4)
+    return (lines, quads, new_corners, new_sides, normals, rms, contrast, residuals), strip
 
 
 def silhouette_sides(
