@@ -947,8 +947,9 @@ def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing):
 _ESF_BIN_PX = 0.1  # bin width of the pooled edge-spread function
 _ESF_OUT_PX = 4.5  # outer reach of the band around a side
 _ESF_MAX_STRIP_PX = 3.5  # widest outer strip looked for
-_ESF_MIN_STRIP_CONTRAST = 0.01  # a strip differs from the face and the outside by this (of face − outside)
+_ESF_MIN_STRIP_CONTRAST = 0.03  # a strip differs from the face and the outside by this (of face − outside)
 _ESF_MIN_STRIP_PX = 0.5  # narrowest strip believed
+_ESF_DEBUG = False
 _ESF_MIN_GAIN = 0.1  # the two-step model must remove this fraction of the one-step misfit
 
 
@@ -1100,9 +1101,14 @@ def _esf_side(linear, lines, quads, corners, i, inner, margin, min_contrast):
     inv = np.cumsum(used) - 1
     cnt = cnt[used]
     pos = np.bincount(idx, weights=d, minlength=nb)[used] / cnt
-    ybar = np.stack([np.bincount(idx, weights=y[:, j], minlength=nb)[used] for j in range(4)], 1) / cnt[:, None]
-    # pixel scatter about the bin means: the noise variance of one pixel's (f, r)
-    noise_var = float(np.sum((y - ybar[inv[idx]]) ** 2) / max(len(y) - len(cnt), 1))
+    # bin medians: a background texture changing between the station and the pixel spoils a few
+    # pixels of a bin, not its median
+    ybar = np.stack([_bin_medians(idx, y[:, j], cnt) for j in range(4)], axis=1)
+    # robust pixel scatter about the bin medians: the noise variance of one pixel's (f, r)
+    dev = np.abs(y - ybar[inv[idx]])
+    noise_var = float(np.sum((1.4826 * np.median(dev, axis=0)) ** 2))
+    # not below the 8-bit quantisation (≈ 0.002 of linear value at mid tones, per channel)
+    noise_var = max(noise_var, 4 * 0.002**2 / float(np.median(dd)))
     wts = cnt
     p, q = sorted((abs(n[0]), abs(n[1])), reverse=True)
 
@@ -1127,8 +1133,14 @@ def _esf_side(linear, lines, quads, corners, i, inner, margin, min_contrast):
     E, W = E.ravel(), W.ravel()
     keep = (E <= 1.0) & (E + W <= _ESF_OUT_PX - 1.0)  # the outer step and the outside inside the band
     E, W = E[keep], W[keep]
-    sse2, coef, rho = _fit_two_steps(pos, wts, ybar, E, W, scale, p, q)
-    g = int(np.argmin(sse2))
+    # the one-step fit may have widened its ramp to swallow a strip: try the sharp ramp too
+    best2 = None
+    for s in sorted({float(scale), 1.0}) if phases >= 6 else (1.0,):
+        sse2, coef, rho = _fit_two_steps(pos, wts, ybar, E, W, s, p, q)
+        g = int(np.argmin(sse2))
+        if best2 is None or sse2[g] < best2[0]:
+            best2 = (float(sse2[g]), g, s)
+    _, g, scale = best2
     E, W = np.meshgrid(E[g] + np.arange(-0.1, 0.101, 0.02), W[g] + np.arange(-0.1, 0.101, 0.02), indexing="ij")
     E, W = E.ravel(), W.ravel()
     keep = W >= 0.2
@@ -1141,6 +1153,9 @@ def _esf_side(linear, lines, quads, corners, i, inner, margin, min_contrast):
     out_lvl = np.r_[al2, 0, 0, 0]
     strip_lvl = np.r_[al2 + ph2, rho[g2]]
     contrast = min(np.linalg.norm(strip_lvl - face_lvl), np.linalg.norm(strip_lvl - out_lvl))
+    if _ESF_DEBUG:
+        print("esf", i, "e1", round(e_one, 3), "s", round(scale, 2), "sse1", sse1, "sse2", sse2[g2], "E,W",
+              E[g2], W[g2], "noise", noise_var, "strip", np.round(strip_lvl, 3), "face", round(al2 + be2, 3), "ph", phases)
     accept = (gain > max(_ESF_MIN_GAIN * sse1, 40.0 * noise_var) and contrast >= _ESF_MIN_STRIP_CONTRAST * be2
               and be2 > 0.5 and W[g2] >= _ESF_MIN_STRIP_PX and E[g2] <= e_one - 0.15)
     if accept and phases < 6:
@@ -1151,6 +1166,16 @@ def _esf_side(linear, lines, quads, corners, i, inner, margin, min_contrast):
     if accept:
         return float(E[g2]), float(W[g2]), e_one
     return e_one, 0.0, e_one
+
+
+def _bin_medians(idx: np.ndarray, values: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Median of `values` (K,) in each occupied bin of `idx` (K,), bins in increasing order;
+    counts (B,) are the occupied bins' sizes."""
+    order = np.lexsort((values, idx))
+    sv = values[order]
+    start = np.r_[0, np.cumsum(counts)[:-1]].astype(int)
+    c = counts.astype(int)
+    return 0.5 * (sv[start + (c - 1) // 2] + sv[start + c // 2])
 
 
 def _parabola_min(x: np.ndarray, y: np.ndarray, k: int) -> float:
