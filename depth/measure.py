@@ -950,7 +950,7 @@ _ESF_MAX_STRIP_PX = 3.5  # widest outer strip looked for
 _ESF_MIN_STRIP_CONTRAST = 0.03  # a strip differs from the face and the outside by this (of face − outside)
 _ESF_MIN_STRIP_PX = 0.5  # narrowest strip believed
 _ESF_DEBUG = False
-_ESF_MIN_GAIN = 0.1  # the two-step model must remove this fraction of the one-step misfit
+_ESF_MIN_GAIN = 0.3  # the two-step model must remove this fraction of the one-step misfit
 
 
 def _ramp_cdf(x: np.ndarray, p: float, q: float) -> np.ndarray:
