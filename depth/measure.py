@@ -1054,6 +1054,17 @@ _ESF_SCALES = np.arange(0.5, 1.81, 0.1)  # ramp widths tried (px): sharper or bl
 
 
 def _esf_side(linear, lines, quads, corners, i, inner, margin, min_contrast):
+    """`_esf_side_mode` on chroma (blind to a grey background's texture), then on the full
+    colour (which sees a strip of the face's chroma but another brightness against grey)."""
+    res = _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast, True)
+    if res is None or res[1] == 0.0:
+        full = _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast, False)
+        if full is not None and (res is None or full[1] > 0.0):
+            return full
+    return res
+
+
+def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast, use_chroma):
     """Edge offset of side i from its pooled edge-spread function, or None when not measurable.
 
     Returns (e, w, e_one): the face edge's outward offset e (px) from the fitted side, the width w
@@ -1079,13 +1090,20 @@ def _esf_side(linear, lines, quads, corners, i, inner, margin, min_contrast):
         foot = np.stack([t_st, (qa * t_st + qb) * t_st + qc], axis=1)
     c_in = _level_along(linear, t_st, foot, n, -inner)
     c_out = _level_along(linear, t_st, foot, n, _ESF_OUT_PX + 0.5)
+    pix = linear[v, u]
+    if use_chroma:
+        # without the grey component (as `_edge_offsets`): a grey background's texture vanishes
+        chroma = lambda c: c - c.mean(axis=-1, keepdims=True)  # noqa: E731
+        cc = chroma(c_in) - chroma(c_out)
+        if np.median(np.sum(cc * cc, axis=1)) >= min_contrast**2:
+            c_in, c_out, pix = chroma(c_in), chroma(c_out), chroma(pix)
     k = np.clip(np.searchsorted(t_st, t), 0, len(t_st) - 1)
     delta = (c_in - c_out)[k]
     dd = np.sum(delta * delta, axis=1)
     ok = dd >= min_contrast**2
     if ok.sum() < 40:
         return None
-    colour = linear[v[ok], u[ok]] - c_out[k[ok]]
+    colour = pix[ok] - c_out[k[ok]]
     delta, dd, d = delta[ok], dd[ok], d[ok]
     f = np.sum(colour * delta, axis=1) / dd
     r = (colour - f[:, None] * delta) / np.sqrt(dd)[:, None]
