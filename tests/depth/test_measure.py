@@ -449,3 +449,33 @@ def test_narrow_faces_are_outlined_with_few_top_and_bottom_points(width, backgro
     assert o, getattr(o, "reason", "")
     assert 3 <= len(o.sides[2]) and 3 <= len(o.sides[3])
     assert corner_errors(o, c).max() <= 0.1
+
+
+# ------------------------------------------------------------------- thin neighbouring strips
+
+
+@pytest.mark.parametrize("background", ["checker", "grey"])
+@pytest.mark.parametrize("strip", [0.6, 1.0, 1.5, 2.5])
+@pytest.mark.parametrize("shade", [0.35, 0.95])
+def test_thin_strip_beside_a_side_does_not_move_the_face_edge(strip, background, shade, request):
+    """A side face 0.6–2.5 px wide, same hue as the front face but darker or brighter, lies
+    beyond the right side: the face's corners are still found within 0.1 px, and the strip is
+    reported on that side (and only there)."""
+    rng = np.random.default_rng(int(strip * 10) + (background == "grey"))
+    u0, v0 = 70.3 + rng.uniform(-0.5, 0.5), 30.4 + rng.uniform(-0.5, 0.5)
+    c = FakeCube((u0, v0), (u0 + 24.6, v0 + 0.7), (u0 + 27.1, v0 + 101.3), (u0 + 2.3, v0 + 100.8),
+                 top_sag=1.2, bottom_sag=-0.8, albedo=COLOURS["red"], front_shade=0.7,
+                 side_shade=shade, side="right", side_width=strip)
+    if (shade, strip, background) == (0.95, 2.5, "checker"):
+        request.applymarker(pytest.mark.xfail(strict=True, reason="top-right corner 0.12 px off: not yet understood"))
+    image, mirror = make_image((160, 170), [c], background=background)
+    (d,) = match(detect_cubes(image, mirror), [c])
+    o = face_outline(image, d.front_face_mask)
+    assert o, getattr(o, "reason", "")
+    assert corner_errors(o, c).max() <= 0.1
+    # edge points of the right side lie on the true side, not between the face and the strip
+    right = o.sides[1]
+    assert np.abs(np.median(right[:, 0] - c.right(right[:, 1]))) <= 0.1
+    assert o.strip_px[0] == 0.0 and o.strip_px[2] == 0.0 and o.strip_px[3] == 0.0
+    if strip < 2.0:  # wider strips are split off by the detection's face mask
+        assert o.strip_px[1] == pytest.approx(strip, abs=0.15)
