@@ -689,9 +689,10 @@ def face_outline(
         if isinstance(result, FailedMeasurement):
             return result
         model = result
-    strip = np.zeros(4)
-    for _ in range(2):
-        model, strip = _esf_pass(linear, model, min_contrast)
+    model, strip = _esf_pass(linear, model, min_contrast)
+    if strip.any():  # re-centre the band on the moved sides and measure them again
+        model, again = _esf_pass(linear, model, min_contrast, sides=np.flatnonzero(strip > 0))
+        strip = np.where(again > 0, again, strip)
     lines, quads, corners, sides, normals, rms, contrast, residuals = model
     all_res = np.concatenate(residuals)
     return FaceOutline(
@@ -1055,7 +1056,7 @@ def _fit_two_steps(pos, wts, ybar, E, W, scale, p, q):
     return sse_f + sse_r, coef, rho
 
 
-_ESF_SCALES = np.arange(0.5, 1.81, 0.1)  # ramp widths tried (px): sharper or blurred optics
+_ESF_SCALES = np.arange(0.6, 1.81, 0.2)  # ramp widths tried (px): sharper or blurred optics
 
 
 def _esf_side(linear, lines, quads, corners, i, inner, margin, min_contrast):
@@ -1212,11 +1213,13 @@ def _parabola_min(x: np.ndarray, y: np.ndarray, k: int) -> float:
     return float(x[k] + 0.5 * (x[k + 1] - x[k]) * (y0 - y2) / den)
 
 
-def _esf_pass(linear, model, min_contrast, margin=2.5):
+def _esf_pass(linear, model, min_contrast, margin=2.5, sides=range(4)):
     """Shift each side of a refined model to its edge found by `_esf_side`.
 
     Returns (model, strip_px (4,)) with the sides' lines/quadratics shifted along their normals,
-    the edge points moved by the same offsets, and the corners recomputed."""
+    the edge points moved by the same offsets, and the corners recomputed. Only the `sides`
+    given (indices into left, right, top, bottom) are measured."""
+    which = [int(i) for i in sides]
     lines, quads, corners, sides, normals, rms, contrast, residuals = model
     lines, quads = lines.copy(), quads.copy()
     tl, tr, br, bl = corners
@@ -1224,7 +1227,7 @@ def _esf_pass(linear, model, min_contrast, margin=2.5):
     height = 0.5 * ((bl[1] - tl[1]) + (br[1] - tr[1]))
     strip = np.zeros(4)
     new_sides = list(sides)
-    for i in range(4):
+    for i in which:
         span = width if i < 2 else height
         inner = float(np.clip(0.5 * span + 0.5, 1.5, 4.0))
         res = _esf_side(linear, model[0], model[1], corners, i, inner, margin, min_contrast)
