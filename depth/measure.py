@@ -908,9 +908,12 @@ def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing):
             return FailedMeasurement(f"{name} side: {len(p)} edge points, need {min_points}")
         e, c = _edge_offsets(linear, p, n, half_width, min_contrast)
         good = (c >= min_contrast) & (np.abs(e) <= half_width - 0.5)
-        if good.sum() < min_points and (c >= min_contrast).sum() >= min_points:
-            # every edge lies beyond the profile's reach (the mask's side is off by more than a
-            # pixel, e.g. beside a bright strip): step toward it; the next pass measures it
+        beyond = (c >= min_contrast) & (np.abs(e) > half_width - 0.5)
+        if (i < 2 and good.sum() < min_points and (c >= min_contrast).sum() >= min_points
+                and max((beyond & (e > 0)).sum(), (beyond & (e < 0)).sum()) >= 0.8 * (c >= min_contrast).sum()):
+            # a left/right side's edge lies beyond the profile's reach all along (the mask's side is
+            # off by more than a pixel, e.g. beside a bright strip): step toward it; the next pass
+            # measures it
             good = c >= min_contrast
             e = np.clip(e, -(half_width - 0.5), half_width - 0.5)
         if good.sum() < min_points:
