@@ -1076,8 +1076,9 @@ def _esf_side(linear, lines, quads, corners, i, inner, margin, min_contrast):
 def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast, use_chroma):
     """Edge offset of side i from its pooled edge-spread function, or None when not measurable.
 
-    Returns (e, w, e_one): the face edge's outward offset e (px) from the fitted side, the width w
-    of an outer strip (0 when one step explains the profile) and the one-step edge e_one.
+    Returns (e, w, e_one, s): the face edge's outward offset e (px) from the fitted side, the width
+    w of an outer strip (0 when one step explains the profile), the one-step edge e_one and the
+    one-step ramp width s (px; > 1 for a blurred image).
 
     Pixels in the band around the side are reduced to a face-ness f (projection of the colour on
     c_face − c_out, both measured per station along the side: 1 on the face, 0 outside) and the
@@ -1145,12 +1146,14 @@ def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast
     best = None
     # the ramp's width is measurable only when the pixels sample many phases of the edge
     phases = np.unique(np.floor(np.mod(pos, 1.0) / 0.1)).size
-    for s in (_ESF_SCALES if phases >= 6 else (1.0,)):
+    # (one sample per pixel cannot tell a ramp sharper than a pixel, but sees a blurred one)
+    for s in (_ESF_SCALES if phases >= 6 else _ESF_SCALES[_ESF_SCALES >= 0.99]):
         sse, al, be = _fit_one_step(pos, wts, ybar, e_grid, s, p, q)
         g = int(np.argmin(sse))
         if best is None or sse[g] < best[0]:
             best = (float(sse[g]), g, s, sse, be[g])
     sse1, g1, scale, sse_curve, be1 = best
+    scale1 = float(scale)
     if g1 == 0 or g1 == len(e_grid) - 1 or be1 < 0.5:
         return None
     e_one = _parabola_min(e_grid, sse_curve, g1)
@@ -1191,8 +1194,8 @@ def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast
         # line and it fills at least a pixel
         accept = W[g2] >= 1.0 and np.linalg.norm(rho[g2]) >= 0.03 * be2
     if accept:
-        return float(E[g2]), float(W[g2]), e_one
-    return e_one, 0.0, e_one
+        return float(E[g2]), float(W[g2]), e_one, scale1
+    return e_one, 0.0, e_one, scale1
 
 
 def _bin_medians(idx: np.ndarray, values: np.ndarray, counts: np.ndarray) -> np.ndarray:
@@ -1230,13 +1233,19 @@ def _esf_pass(linear, model, min_contrast, margin=2.5, sides=range(4)):
     height = 0.5 * ((bl[1] - tl[1]) + (br[1] - tr[1]))
     strip = np.zeros(4)
     new_sides = list(sides)
+    found = {}
     for i in which:
         span = width if i < 2 else height
         inner = float(np.clip(0.5 * span + 0.5, 1.5, 4.0))
         res = _esf_side(linear, model[0], model[1], corners, i, inner, margin, min_contrast)
-        if res is None:
-            continue
-        e, ws, e_one = res
+        if res is not None:
+            found[i] = res
+    # a blurred image (edges wider than a pixel on every side) hides a thin strip's steps in
+    # the blur's tails: leave the sides to the per-point estimate
+    if found and min(r[3] for r in found.values()) > 1.25:
+        return model, np.zeros(4)
+    for i, res in found.items():
+        e, ws, e_one, _ = res
         if ws <= 0:  # one step: the per-point area estimate is already exact
             continue
         strip[i] = ws
