@@ -20,6 +20,12 @@ __all__ = ["read_image", "default_setup_path", "run_reconstruction", "result_dic
            "print_table", "write_outputs"]
 
 
+def is_jpeg(path) -> bool:
+    """The file starts with the JPEG start-of-image marker (FF D8 FF), whatever its name."""
+    with open(path, "rb") as f:
+        return f.read(3) == b"\xff\xd8\xff"
+
+
 def read_image(path) -> np.ndarray:
     """An 8-bit RGB image file as (H, W, 3) uint8; one-line errors for anything else."""
     path = Path(path)
@@ -63,7 +69,7 @@ def run_reconstruction(image_path, setup_path=None, method=None, cube_size=None,
     from depth.errors import DepthError
     try:
         rec = reconstruct(image, setup.camera.build(), setup.mirror.build(), method=method,
-                          cube_size=cube_size, progress=progress)
+                          cube_size=cube_size, progress=progress, compressed=is_jpeg(image_path))
     except DepthError as exc:
         raise CatadioptricError(f"{image_path}: {exc}") from None
     return setup, setup_path, image, rec

@@ -635,6 +635,7 @@ def face_outline(
     min_contrast: float = 0.02,
     min_points_per_side: int = 5,
     spacing_px: float = 1.0,
+    thin_strips: bool = True,
 ) -> FaceOutline | FailedMeasurement:
     """Sub-pixel outline of a face: edge points on its four sides, side fits and corners.
 
@@ -656,6 +657,9 @@ def face_outline(
         sRGB-encoded image in [0, 1].
     face_mask : (H, W) bool
         Rough mask of the face (e.g. `CubeDetection.front_face_mask`), within ~1 px.
+    thin_strips : bool
+        Run the edge-spread-function pass for thin strips. Turn it off for JPEG images, whose
+        ringing beside an edge looks like a strip.
 
     Returns
     -------
@@ -689,7 +693,9 @@ def face_outline(
         if isinstance(result, FailedMeasurement):
             return result
         model = result
-    model, strip = _esf_pass(linear, model, min_contrast)
+    strip = np.zeros(4)
+    if thin_strips:
+        model, strip = _esf_pass(linear, model, min_contrast)
     if strip.any():  # re-centre the band on the moved sides and measure them again
         model, again = _esf_pass(linear, model, min_contrast, sides=np.flatnonzero(strip > 0))
         strip = np.where(again > 0, again, strip)
@@ -1323,3 +1329,4 @@ def silhouette_sides(
         gap = sign * (pts[:, 0] - (a * pts[:, 1] + b))
         out.append(pts if np.median(gap) > min_gap_px else None)
     return tuple(out)
+

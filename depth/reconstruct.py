@@ -97,7 +97,7 @@ def _bbox(mask: np.ndarray) -> tuple:
 
 
 def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: float | None = None,
-                progress=None) -> Reconstruction:
+                progress=None, compressed: bool = False) -> Reconstruction:
     """Find and estimate every cube in a mirror image.
 
     Parameters
@@ -108,6 +108,8 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     method : "exact" (default), "ddar", "dds" or "shape_prior"
     cube_size : float, optional — known edge length in metres
     progress : callable(done, total), optional
+    compressed : bool — the image went through lossy (JPEG) compression; its ringing is not taken
+        for thin strips beside the faces
     """
     from raytrace.truth import mirror_mask, mirror_rays
     from depth.measure import detect_cubes, face_outline, silhouette_sides
@@ -127,6 +129,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         return r.points, r.directions
 
     detections = detect_cubes(img, mask)
+    thin_strips = not compressed  # JPEG ringing beside an edge mimics a thin strip
     cubes, refused, measured = [], [], []
     total = max(len(detections), 1)
     for i, det in enumerate(detections):
@@ -135,7 +138,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             refused.append(Refusal(bbox, det.reason or ("cut by the mirror's edge" if det.cut_by_mirror_edge
                                                         else "occluded by another cube")))
             continue
-        outline = face_outline(img, det.front_face_mask)
+        outline = face_outline(img, det.front_face_mask, thin_strips=thin_strips)
         if not outline:
             refused.append(Refusal(bbox, f"face outline: {outline.reason}"))
             continue

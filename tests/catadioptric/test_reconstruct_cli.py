@@ -122,3 +122,12 @@ def test_image_without_cubes_says_so(scene, capsys, tmp_path):
     assert main(["reconstruct", str(tmp_path / "empty.png"), "--setup", str(scene / "mirror.toml"), "-o", str(out)]) == 0
     assert "no cube found" in capsys.readouterr().out
     assert json.loads(out.read_text())["cubes"] == []
+
+
+def test_jpeg_files_are_recognised_by_their_bytes(scene, tmp_path):
+    from catadioptric.reconstruct import is_jpeg
+    img = cv2.imread(str(scene / "mirror.png"))
+    cv2.imwrite(str(tmp_path / "a.png"), img)
+    ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 90])
+    (tmp_path / "b.png").write_bytes(buf.tobytes())  # a JPEG under a .png name
+    assert not is_jpeg(tmp_path / "a.png") and is_jpeg(tmp_path / "b.png")
