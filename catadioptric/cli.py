@@ -20,14 +20,9 @@ __all__ = ["main", "known_errors"]
 def known_errors() -> tuple[type, ...]:
     """The base errors of every package: these print as one line and exit 1."""
     from depth.errors import DepthError
-    errors: list[type] = [CatadioptricError, DepthError]
-    for module, name in (("raytrace.errors", "RaytraceError"), ("xslit_fit.errors", "FitError")):
-        try:
-            mod = __import__(module, fromlist=[name])
-            errors.append(getattr(mod, name))
-        except (ImportError, AttributeError):
-            pass
-    return tuple(errors)
+    from raytrace.errors import RaytraceError
+    from xslit_fit.errors import FitError
+    return (CatadioptricError, DepthError, RaytraceError, FitError)
 
 
 class Progress:
