@@ -457,12 +457,12 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     opts = dict(method="trf", loss="soft_l1", f_scale=1.0, x_scale="jac", max_nfev=300)
     upright = np.array([0, 3, 4, 5, 6])  # turn about the vertical, centre, log size
 
-    def solve(free: bool, starts):
+    def solve(free: bool, starts, max_nfev: int = 300):
         best = None
         for x0 in starts:
             if free:
                 sol = least_squares(resid, x0, bounds=([-lim] * 3 + [-np.inf] * 4, [lim] * 3 + [np.inf] * 4),
-                                    **opts)
+                                    **dict(opts, max_nfev=max_nfev))
                 x = sol.x
             else:
                 def fun(y):
@@ -470,19 +470,22 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
                     x[upright] = y
                     return resid(x)
                 sol = least_squares(fun, x0[upright], bounds=([-lim] + [-np.inf] * 4, [lim] + [np.inf] * 4),
-                                    **opts)
+                                    **dict(opts, max_nfev=max_nfev))
                 x = np.zeros(7)
                 x[upright] = sol.x
-            if (sol.success or sol.status > 0) and (best is None or sol.cost < best[1].cost):
+            if sol.status >= 0 and (best is None or sol.cost < best[1].cost):  # 0: stopped at max_nfev
                 best = (x, sol)
         return best
 
     def refined(free: bool, starts):
         """Solve, re-measure the pixel scales at the solution, and solve once more from there."""
         nonlocal weight
-        best = solve(free, starts)
+        # Several starts: a few iterations each pick the basin, then only the best one is finished.
+        best = solve(free, starts, max_nfev=25 if len(starts) > 1 else 300)
         if best is None:
             return None
+        if len(starts) > 1:
+            best = solve(free, [best[0]]) or best
         weight = pixel_weights(best[0])
         return solve(free, [best[0]])
 
