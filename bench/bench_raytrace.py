@@ -128,36 +128,12 @@ def time_trimesh(scene, primary, reflected):
 
 
 def time_mitsuba(scene, cam):
-    try:
-        import mitsuba as mi
-    except ImportError:
+    from bench.mitsuba_scenes import mitsuba_available, scene_dict
+    if not mitsuba_available():
         return None
+    import mitsuba as mi
     mi.set_variant("scalar_rgb")
-    w, h = cam.resolution
-    m = scene.mirror
-    half = m.height / 2 * m.axis
-    d = {
-        "type": "scene",
-        "integrator": {"type": "path", "max_depth": 4},
-        "sensor": {
-            "type": "perspective",
-            "fov_axis": "x",
-            "fov": float(np.degrees(2 * np.arctan(w / (2 * cam.K[0, 0])))),
-            "to_world": mi.ScalarTransform4f().look_at(origin=cam.position.tolist(), target=(cam.position + cam.R[2]).tolist(), up=(-cam.R[1]).tolist()),
-            "film": {"type": "hdrfilm", "width": w, "height": h},
-            "sampler": {"type": "stratified", "sample_count": SPP},
-        },
-        "mirror": {"type": "cylinder", "p0": (m.center - half).tolist(), "p1": (m.center + half).tolist(), "radius": m.radius,
-                   "bsdf": {"type": "conductor", "material": "none"}},
-        "sun": {"type": "directional", "direction": (-scene.light.to_light).tolist(), "irradiance": {"type": "rgb", "value": 0.8}},
-        "sky": {"type": "constant", "radiance": {"type": "rgb", "value": 0.05}},
-    }
-    for k, c in enumerate(scene.objects):
-        m4 = np.eye(4)
-        m4[:3, :3] = c.rotation * (c.size / 2)
-        m4[:3, 3] = c.center
-        d[f"cube{k}"] = {"type": "cube", "to_world": mi.ScalarTransform4f(m4.tolist()),
-                         "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": c.color.tolist()}}}
+    d = scene_dict(cam, scene.mirror, scene.objects, SPP, -scene.light.to_light, 0.8, 0.05, max_depth=4)
     scene_mi = mi.load_dict(d)
     return best_of(lambda: mi.render(scene_mi))
 

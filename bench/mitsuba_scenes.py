@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["mitsuba_available", "mitsuba_render", "SPP", "LIGHT_TRAVEL", "ENV_RADIANCE"]
+__all__ = ["mitsuba_available", "mitsuba_render", "scene_dict", "SPP", "LIGHT_TRAVEL", "ENV_RADIANCE"]
 
 SPP = 16
 LIGHT_TRAVEL = (0.3, -1.0, -0.5)
@@ -29,44 +29,51 @@ def mitsuba_available() -> bool:
     return True
 
 
-def _dict(setup) -> dict:
+def scene_dict(camera, mirror, cubes, spp: int, sun_travel, sun_irradiance: float, sky_radiance: float,
+               rfilter: str | None = None, max_depth: int = 5) -> dict:
+    """A Mitsuba 3 scene dict of our camera (PinholeCamera), CylinderMirror and Cubes, with a
+    directional sun and a constant sky."""
     import mitsuba as mi
-    cam = setup.camera.build()
-    w, h = setup.camera.resolution
-    if setup.camera.principal_px is not None:
-        cx, cy = setup.camera.principal_px
-        if abs(cx - (w - 1) / 2) > 1e-9 or abs(cy - (h - 1) / 2) > 1e-9:
-            raise ValueError("mitsuba_render: expected the default principal point (no offset)")
-    m = setup.mirror
-    axis = np.asarray(m.axis, float) / np.linalg.norm(m.axis)
-    centre = np.asarray(m.center, float)
-    half = m.height / 2 * axis
+    w, h = camera.resolution
+    cx, cy = camera.K[0, 2], camera.K[1, 2]
+    if abs(cx - (w - 1) / 2) > 1e-9 or abs(cy - (h - 1) / 2) > 1e-9:
+        raise ValueError("mitsuba scene: expected the default principal point (no offset)")
+    half = mirror.height / 2 * mirror.axis
+    film = {"type": "hdrfilm", "width": int(w), "height": int(h)}
+    if rfilter:
+        film["rfilter"] = {"type": rfilter}
     d = {
         "type": "scene",
-        "integrator": {"type": "path", "max_depth": 5},
+        "integrator": {"type": "path", "max_depth": max_depth},
         "sensor": {
             "type": "perspective",
             "fov_axis": "x",
-            "fov": float(np.degrees(2 * np.arctan(w / (2 * cam.K[0, 0])))),
-            "to_world": mi.ScalarTransform4f().look_at(origin=cam.position.tolist(),
-                                                       target=(cam.position + cam.R[2]).tolist(),
-                                                       up=(-cam.R[1]).tolist()),
-            "film": {"type": "hdrfilm", "width": int(w), "height": int(h), "rfilter": {"type": "gaussian"}},
-            "sampler": {"type": "stratified", "sample_count": SPP},
+            "fov": float(np.degrees(2 * np.arctan(w / (2 * camera.K[0, 0])))),
+            "to_world": mi.ScalarTransform4f().look_at(origin=camera.position.tolist(),
+                                                       target=(camera.position + camera.R[2]).tolist(),
+                                                       up=(-camera.R[1]).tolist()),
+            "film": film,
+            "sampler": {"type": "stratified", "sample_count": spp},
         },
-        "mirror": {"type": "cylinder", "p0": (centre - half).tolist(), "p1": (centre + half).tolist(),
-                   "radius": float(m.radius), "bsdf": {"type": "conductor", "material": "none"}},
-        "sun": {"type": "directional", "direction": list(LIGHT_TRAVEL),
-                "irradiance": {"type": "rgb", "value": SUN_IRRADIANCE}},
-        "sky": {"type": "constant", "radiance": {"type": "rgb", "value": ENV_RADIANCE}},
+        "mirror": {"type": "cylinder", "p0": (mirror.center - half).tolist(), "p1": (mirror.center + half).tolist(),
+                   "radius": float(mirror.radius), "bsdf": {"type": "conductor", "material": "none"}},
+        "sun": {"type": "directional", "direction": [float(x) for x in sun_travel],
+                "irradiance": {"type": "rgb", "value": sun_irradiance}},
+        "sky": {"type": "constant", "radiance": {"type": "rgb", "value": sky_radiance}},
     }
-    for k, c in enumerate(setup.objects):
+    for k, c in enumerate(cubes):
         m4 = np.eye(4)
         m4[:3, :3] = c.rotation * (c.size / 2)
         m4[:3, 3] = c.center
         d[f"cube{k}"] = {"type": "cube", "to_world": mi.ScalarTransform4f(m4.tolist()),
-                         "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(c.color)}}}
+                         "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [float(x) for x in c.color]}}}
     return d
+
+
+def _dict(setup) -> dict:
+    scene = setup.build_scene()
+    return scene_dict(setup.camera.build(), scene.mirror, scene.objects, SPP, LIGHT_TRAVEL, SUN_IRRADIANCE,
+                      ENV_RADIANCE, rfilter="gaussian")
 
 
 def mitsuba_render(setup, seed: int = 0) -> np.ndarray | None:

@@ -30,18 +30,15 @@ def reference_scene():
     return cam, mirror, cubes
 
 
-def render_reference(spp: int = 256) -> np.ndarray:
-    """Render with Mitsuba 3 (scalar_rgb): (H, W, 3) float linear RGB."""
+def sensor_and_mirror(cam, mirror, spp: int) -> dict:
+    """The Mitsuba 3 scene dict of our camera (GEOMETRY_NOTES mapping, box filter) and cylinder mirror."""
     import mitsuba as mi
-    mi.set_variant("scalar_rgb")
-    cam, mirror, cubes = reference_scene()
     w, h = cam.resolution
-    fx = cam.K[0, 0]
     half = mirror.height / 2 * mirror.axis
-    scene = {
+    return {
         "type": "scene",
         "integrator": {"type": "path", "max_depth": 4},
-        "sensor": {"type": "perspective", "fov_axis": "x", "fov": float(np.degrees(2 * np.arctan(w / (2 * fx)))),
+        "sensor": {"type": "perspective", "fov_axis": "x", "fov": float(np.degrees(2 * np.arctan(w / (2 * cam.K[0, 0])))),
                    "to_world": mi.ScalarTransform4f().look_at(origin=cam.position.tolist(),
                                                               target=(cam.position + cam.R[2]).tolist(),
                                                               up=(-cam.R[1]).tolist()),
@@ -50,6 +47,14 @@ def render_reference(spp: int = 256) -> np.ndarray:
         "mirror": {"type": "cylinder", "p0": (mirror.center - half).tolist(), "p1": (mirror.center + half).tolist(),
                    "radius": mirror.radius, "bsdf": {"type": "conductor", "material": "none"}},
     }
+
+
+def render_reference(spp: int = 256) -> np.ndarray:
+    """Render with Mitsuba 3 (scalar_rgb): (H, W, 3) float linear RGB."""
+    import mitsuba as mi
+    mi.set_variant("scalar_rgb")
+    cam, mirror, cubes = reference_scene()
+    scene = sensor_and_mirror(cam, mirror, spp)
     black = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}}
     for k, cube in enumerate(cubes):
         m4 = np.eye(4)

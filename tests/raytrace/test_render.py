@@ -130,32 +130,9 @@ def test_xslit_render_of_frontal_square_shows_paper_aspect_ratio():
 
 def _mitsuba_masks(cam, mirror, cubes, spp):
     mi = pytest.importorskip("mitsuba")
+    from mitsuba_reference import sensor_and_mirror
     mi.set_variant("scalar_rgb")
-    w, h = cam.resolution
-    fx = cam.K[0, 0]
-    z = cam.R[2]
-    up = -cam.R[1]
-    target = cam.position + z
-    half = mirror.height / 2 * mirror.axis
-    scene = {
-        "type": "scene",
-        "integrator": {"type": "path", "max_depth": 4},
-        "sensor": {
-            "type": "perspective",
-            "fov_axis": "x",
-            "fov": float(np.degrees(2 * np.arctan(w / (2 * fx)))),
-            "to_world": mi.ScalarTransform4f().look_at(origin=cam.position.tolist(), target=target.tolist(), up=up.tolist()),
-            "film": {"type": "hdrfilm", "width": w, "height": h, "rfilter": {"type": "box"}},
-            "sampler": {"type": "stratified", "sample_count": spp},
-        },
-        "mirror": {
-            "type": "cylinder",
-            "p0": (mirror.center - half).tolist(),
-            "p1": (mirror.center + half).tolist(),
-            "radius": mirror.radius,
-            "bsdf": {"type": "conductor", "material": "none"},
-        },
-    }
+    scene = sensor_and_mirror(cam, mirror, spp)
     for k, cube in enumerate(cubes):
         m4 = np.eye(4)
         m4[:3, :3] = cube.rotation * (cube.size / 2)
