@@ -191,12 +191,9 @@ def scene_model(camera, mirror, cubes=(), truth=(), slits=(), reach: float | Non
 
 def _quiet_vtk() -> None:
     """VTK warns on stderr when it falls back from X to off-screen rendering; the CLI prints one line."""
-    try:
-        from vtkmodules.vtkCommonCore import vtkLogger, vtkObject
-        vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_OFF)
-        vtkObject.GlobalWarningDisplayOff()
-    except ImportError:  # pragma: no cover - pyvista always ships vtkmodules
-        pass
+    from vtkmodules.vtkCommonCore import vtkLogger, vtkObject  # vtk comes with pyvista
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_OFF)
+    vtkObject.GlobalWarningDisplayOff()
 
 
 def _segments(pv, seg: np.ndarray):

@@ -117,7 +117,6 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     if method not in ALL_METHODS:
         raise DepthError(f"method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
     img = check_image(image, camera.resolution)
-    w, h = camera.resolution
     mask = mirror_mask(camera, mirror)
     if not mask.any():
         raise DepthError("image: the setup's camera sees no mirror")

@@ -14,7 +14,7 @@ from catadioptric.cli import main
 pytest.importorskip("pyvista")
 
 
-from conftest import SMALL_DEMO as SMALL  # noqa: E402
+from small_demo import SMALL_DEMO as SMALL  # noqa: E402
 
 WINDOW = (480, 320)
 

@@ -17,7 +17,7 @@ from catadioptric.cli import main
 pv = pytest.importorskip("pyvista")
 
 
-from conftest import SMALL_DEMO as SMALL  # noqa: E402
+from small_demo import SMALL_DEMO as SMALL  # noqa: E402
 
 WINDOW = (480, 320)
 PICTURES = ("view3d.png", "view_top.png", "aspect_ratio.png", "tile_map.png", "annotated.png")
