@@ -88,6 +88,80 @@ def test_same_seed_same_bytes_and_parallel_tiles(monkeypatch):
     assert calls and calls[-1][0] == calls[-1][1]
 
 
+def test_render_into_given_arrays_in_place_or_by_copy(monkeypatch, tmp_path):
+    """`out=`: file-backed memmaps are written in place by the forked workers, other arrays by a copy."""
+    scene = mirror_scene(size=0.08)
+    cam = small_camera()
+    monkeypatch.setattr(rr, "MIN_PARALLEL_PIXELS", 1000)
+    monkeypatch.setattr(rr, "TILE_PIXELS", 4096)
+    ref = render(scene, cam, spp=4, seed=5, workers=1)
+    h, w = ref.object_id.shape
+    maps = {name: np.memmap(tmp_path / name, dtype=dtype, mode="w+", shape=(h, w) + tail)
+            for name, (tail, dtype) in rr.OUTPUTS.items() if name in ("mirror_point", "reflected_dir")}
+    plain = {"image": np.full((h, w, 3), -1.0), "object_id": np.full((h, w), 99, dtype=np.int32)}
+    got = render(scene, cam, spp=4, seed=5, workers=2, out={**maps, **plain})
+    for name in ("mirror_point", "reflected_dir"):
+        assert np.shares_memory(getattr(got, name), maps[name])
+        reread = np.fromfile(tmp_path / name, dtype=np.float64).reshape(h, w, 3)  # what the workers wrote
+        assert np.array_equal(reread, getattr(ref, name), equal_nan=True)
+    assert got.image is plain["image"] and got.object_id is plain["object_id"]
+    assert got.image.tobytes() == ref.image.tobytes()
+    assert np.array_equal(got.object_id, ref.object_id)
+    assert np.array_equal(got.ray_distance, ref.ray_distance)
+
+
+def test_render_out_validation():
+    scene, cam = mirror_scene(), small_camera()
+    h, w = cam.resolution[1], cam.resolution[0]
+    with pytest.raises(RaytraceError, match="unknown array 'colour'"):
+        render(scene, cam, out={"colour": np.zeros((h, w, 3))})
+    with pytest.raises(RaytraceError, match=r"out\['image'\]: expected a float64 array of shape \(120, 160, 3\)"):
+        render(scene, cam, out={"image": np.zeros((h, w, 3), dtype=np.float32)})
+    with pytest.raises(RaytraceError, match="C-contiguous writeable"):
+        render(scene, cam, out={"object_id": np.zeros((w, h), dtype=np.int32).T})
+
+
+def _edges_reference(key):
+    """Some pixel of the 3×3 neighbourhood (clipped at the border) has a different key."""
+    h, w = key.shape
+    out = np.zeros(key.shape, bool)
+    for y in range(h):
+        for x in range(w):
+            nb = key[max(y - 1, 0) : y + 2, max(x - 1, 0) : x + 2]
+            out[y, x] = (nb != key[y, x]).any()
+    return out
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 6), (6, 1), (5, 7), (23, 17)])
+def test_edge_pixels_are_those_with_a_different_neighbour(shape):
+    rng = np.random.default_rng(shape[0] * 31 + shape[1])
+    for levels in (2, 5):
+        key = rng.integers(0, levels, size=shape)
+        assert np.array_equal(rr._edges(key), _edges_reference(key))
+    blocks = np.kron(rng.integers(0, 3, size=(4, 4)), np.ones((6, 6), dtype=int))  # larger flat areas
+    assert np.array_equal(rr._edges(blocks), _edges_reference(blocks))
+
+
+def test_srgb_over_several_blocks_matches_the_formula(monkeypatch):
+    monkeypatch.setattr(rr, "SRGB_BLOCK", 1000)
+    x = np.random.default_rng(2).uniform(-0.2, 1.2, size=(31, 29, 3))  # 2697 values: 3 blocks
+    c = np.clip(x, 0, 1)
+    srgb = np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
+    expected = np.floor(srgb * 255 + 0.5)
+    got = linear_to_srgb8(x)
+    assert got.shape == x.shape and got.dtype == np.uint8
+    off = np.abs(got.astype(int) - expected)
+    assert off.max() <= 1 and (off == 0).mean() > 0.999  # ±1 only at exact .5 ties (round half to even)
+    assert np.array_equal(linear_to_srgb8(x.astype(np.float32)), linear_to_srgb8(x.astype(np.float32).astype(np.float64)))
+
+
+def test_keep_freed_memory_on_glibc():
+    import platform
+    if platform.libc_ver()[0] != "glibc":
+        pytest.skip("not glibc")
+    assert rr.keep_freed_memory() is True
+
+
 def test_adaptive_matches_full_supersampling():
     """Flat shading: pixels without an edge in their 3×3 neighbourhood have the exact average at their centre."""
     scene = mirror_scene(size=0.08)
