@@ -68,15 +68,15 @@ def _check_positive_int(value: int, flag: str) -> int:
 
 def _cmd_simulate(args) -> int:
     from catadioptric.setup import load_setup
-    from catadioptric.simulate import output_paths, simulate, write_simulation
+    from catadioptric.simulate import output_paths, simulate_to_files
     spp = _check_positive_int(args.spp, "--spp")
     if args.seed < 0:
         raise CatadioptricError(f"--seed: expected an integer >= 0, got {args.seed}")
     output_paths(args.output)  # validate the name before any work
     setup = load_setup(args.setup)
     with Progress("rendering") as bar:
-        sim = simulate(setup, spp=spp, seed=args.seed, progress=bar)
-    for path in write_simulation(sim, args.output):
+        _, paths = simulate_to_files(setup, args.output, spp=spp, seed=args.seed, progress=bar)
+    for path in paths:
         print(path)
     return 0
 
@@ -326,6 +326,8 @@ def main(argv=None) -> int:
     """Entry point of the `catadioptric` console script; returns the exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    from raytrace.render import keep_freed_memory
+    keep_freed_memory()  # this process is ours: reuse freed memory rather than re-fault it
     try:
         return int(args.func(args) or 0)
     except known_errors() as exc:

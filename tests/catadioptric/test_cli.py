@@ -77,6 +77,7 @@ def test_simulate_writes_four_files_reproducibly(capsys, tmp_path, valid_setup, 
     # Same seed, same bytes.
     assert run(capsys, "simulate", str(setup), "-o", str(tmp_path / "b.png"), "--seed", "3")[0] == 0
     assert (tmp_path / "a.png").read_bytes() == (tmp_path / "b.png").read_bytes()
+    assert (tmp_path / "a.gt.npz").read_bytes() == (tmp_path / "b.gt.npz").read_bytes()
     # The rendered setup round-trips through the loader.
     from catadioptric.setup import load_setup
     assert load_setup(tmp_path / "a.toml") == load_setup(setup)
