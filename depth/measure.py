@@ -26,7 +26,9 @@ __all__ = [
     "FailedMeasurement",
     "detect_cubes",
     "face_outline",
+    "silhouette_sides",
     "srgb_to_linear",
+    "EDGE_CHANNELS",
 ]
 
 SIDE_NAMES = ("left", "right", "top", "bottom")
@@ -182,6 +184,24 @@ def srgb_to_linear(srgb: np.ndarray) -> np.ndarray:
     """
     srgb = np.asarray(srgb, dtype=np.float64)
     return np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
+
+
+EDGE_CHANNELS = ("colour", "luma")
+"""What edges are located on: the colour difference across the edge ("colour", the default), or
+luma alone ("luma": Y' = 0.299 R' + 0.587 G' + 0.114 B', for JPEG images, whose chroma is stored at
+half resolution and smeared over about two pixels while luma keeps the full resolution)."""
+
+_LUMA = np.array([0.299, 0.587, 0.114])
+
+
+def _edge_image(srgb: np.ndarray, channels: str) -> np.ndarray:
+    """The linear-light signal edges are measured on: (H, W, 3) colour, plus for "luma" a fourth
+    channel, the luma in linear light (see `_edge_offsets`)."""
+    if channels == "colour":
+        return srgb_to_linear(srgb)
+    if channels == "luma":
+        return srgb_to_linear(np.concatenate([srgb, (srgb @ _LUMA)[..., None]], axis=-1))
+    raise DepthError(f"channels: expected one of {', '.join(EDGE_CHANNELS)}, got {channels!r}")
 
 
 def _chroma_hue_value(rgb: np.ndarray):
@@ -636,6 +656,7 @@ def face_outline(
     min_points_per_side: int = 5,
     spacing_px: float = 1.0,
     thin_strips: bool = True,
+    channels: str = "colour",
 ) -> FaceOutline | FailedMeasurement:
     """Sub-pixel outline of a face: edge points on its four sides, side fits and corners.
 
@@ -660,6 +681,9 @@ def face_outline(
     thin_strips : bool
         Run the edge-spread-function pass for thin strips. Turn it off for JPEG images, whose
         ringing beside an edge looks like a strip.
+    channels : "colour" or "luma" (`EDGE_CHANNELS`)
+        "luma" for JPEG images (chroma subsampled): each edge point is placed on the luma profile
+        where luma differs across the edge, on the colour profile where it does not.
 
     Returns
     -------
@@ -679,7 +703,7 @@ def face_outline(
         return FailedMeasurement("face touches the image border")
     r0, r1 = max(rows[0] - border, 0), min(rows[-1] + 1 + border, height)
     c0, c1 = max(cols[0] - border, 0), min(cols[-1] + 1 + border, width)
-    linear = srgb_to_linear(image[r0:r1, c0:c1])
+    linear = _edge_image(image[r0:r1, c0:c1], channels)
     mask = face_mask[r0:r1, c0:c1]
     origin = np.array([c0, r0], dtype=np.float64)
 
@@ -694,10 +718,11 @@ def face_outline(
             return result
         model = result
     strip = np.zeros(4)
+    colour = linear[..., :3]
     if thin_strips:
-        model, strip = _esf_pass(linear, model, min_contrast)
+        model, strip = _esf_pass(colour, model, min_contrast)
     if strip.any():  # re-centre the band on the moved sides and measure them again
-        model, again = _esf_pass(linear, model, min_contrast, sides=np.flatnonzero(strip > 0))
+        model, again = _esf_pass(colour, model, min_contrast, sides=np.flatnonzero(strip > 0))
         strip = np.where(again > 0, again, strip)
     lines, quads, corners, sides, normals, rms, contrast, residuals = model
     all_res = np.concatenate(residuals)
@@ -817,13 +842,14 @@ def _corners(lines: np.ndarray, quads: np.ndarray):
 
 
 def _bilinear(img: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Bilinear samples of (h, w, 3) img at (u, v) → (..., 3)."""
+    """Bilinear samples of (h, w, C) img at (u, v) → (..., C)."""
     coords = np.stack([v.ravel(), u.ravel()])
+    channels = img.shape[-1]
     out = np.stack(
-        [ndimage.map_coordinates(img[..., c], coords, order=1, mode="nearest") for c in range(3)],
+        [ndimage.map_coordinates(img[..., c], coords, order=1, mode="nearest") for c in range(channels)],
         axis=-1,
     )
-    return out.reshape(u.shape + (3,))
+    return out.reshape(u.shape + (channels,))
 
 
 _MIN_TB_POINTS = 3  # fewest edge points fitted on a top or bottom side (a line through them)
@@ -870,12 +896,15 @@ def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25):
     ∫q ds = e + L. Colours are first reduced to their chroma (the grey component is
     removed), so that a grey background's texture does not move the edge; where the
     chroma contrast is below `min_contrast` (two faces of a pale cube) the full colour
-    is used.
+    is used. Given a fourth channel (luma, `_edge_image(..., "luma")`), the profile of luma is
+    used instead wherever its contrast reaches `min_contrast`.
     """
     s = np.arange(-half_width, half_width + step / 2, step)
     u = points[:, 0:1] + s[None, :] * normals[:, 0:1]
     v = points[:, 1:2] + s[None, :] * normals[:, 1:2]
-    prof = _bilinear(linear, u, v)  # (N, K, 3)
+    prof = _bilinear(linear, u, v)  # (N, K, 3) or, with a luma channel, (N, K, 4)
+    luma = prof[..., 3] if prof.shape[-1] == 4 else None
+    prof = prof[..., :3]
     chroma = prof - prof.mean(axis=2, keepdims=True)
     qs, contrasts = [], []
     for p in (chroma, prof):
@@ -893,6 +922,15 @@ def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25):
     use_chroma = contrasts[0] >= min_contrast
     q = np.where(use_chroma[:, None], qs[0], qs[1])
     contrast = np.where(use_chroma, contrasts[0], contrasts[1])
+    if luma is not None:  # luma wherever it shows the edge (JPEG: full resolution), colour elsewhere
+        y_in, y_out = luma[:, 0], luma[:, -1]
+        if len(points) >= 5:
+            y_in = ndimage.median_filter(y_in, size=5, mode="nearest")
+            y_out = ndimage.median_filter(y_out, size=5, mode="nearest")
+        dy = y_in - y_out
+        use_luma = np.abs(dy) >= min_contrast
+        q = np.where(use_luma[:, None], (luma - y_out[:, None]) / np.where(use_luma, dy, 1.0)[:, None], q)
+        contrast = np.where(use_luma, np.abs(dy), contrast)
     area = np.sum((q[:, 1:] + q[:, :-1]) * 0.5, axis=1) * step
     return area - half_width, contrast
 
@@ -1281,6 +1319,7 @@ def silhouette_sides(
     min_contrast: float = 0.02,
     min_gap_px: float = 0.75,
     min_points: int = 8,
+    channels: str = "colour",
 ) -> tuple:
     """Sub-pixel points of the cube's silhouette beside its front face: (left, right).
 
@@ -1290,7 +1329,7 @@ def silhouette_sides(
     lies more than `min_gap_px` beyond the face's own side, a side face is visible and these points
     are the image of the cube's back vertical edge; such a side is returned as (M, 2) float64
     (u, v), otherwise None. Silhouettes against the background do not depend on how the faces are
-    lit, and the back edge tells how far the cube is turned.
+    lit, and the back edge tells how far the cube is turned. `channels` as in `face_outline`.
     """
     image = _check_image(image)
     h, w = image.shape[:2]
@@ -1318,7 +1357,7 @@ def silhouette_sides(
         normal = np.tile([sign, 0.0], (len(start), 1))
         x0, y0 = int(max(start[:, 0].min() - 4, 0)), int(max(start[:, 1].min() - 1, 0))
         x1, y1 = int(min(start[:, 0].max() + 5, w)), int(min(start[:, 1].max() + 2, h))
-        linear = srgb_to_linear(image[y0:y1, x0:x1])
+        linear = _edge_image(image[y0:y1, x0:x1], channels)
         e, contrast = _edge_offsets(linear, start - [x0, y0], normal, profile_half_width_px, min_contrast)
         good = (contrast >= min_contrast) & (np.abs(e) <= profile_half_width_px - 0.5)
         pts = start[good] + e[good, None] * normal[good]

@@ -108,8 +108,9 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     method : "exact" (default), "ddar", "dds" or "shape_prior"
     cube_size : float, optional — known edge length in metres
     progress : callable(done, total), optional
-    compressed : bool — the image went through lossy (JPEG) compression; its ringing is not taken
-        for thin strips beside the faces
+    compressed : bool — the image went through lossy (JPEG) compression: edges are located on
+        luma (its chroma is subsampled; colour where luma shows no edge) and its ringing is not
+        taken for thin strips beside the faces
     """
     from raytrace.truth import mirror_mask, mirror_rays
     from depth.measure import detect_cubes, face_outline, silhouette_sides
@@ -137,14 +138,20 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             refused.append(Refusal(bbox, det.reason or ("cut by the mirror's edge" if det.cut_by_mirror_edge
                                                         else "occluded by another cube")))
             continue
-        outline = face_outline(img, det.front_face_mask, thin_strips=thin_strips)
+        channels = "colour"
+        if compressed:  # chroma at half resolution: luma first, colour where luma shows no edge
+            channels = "luma"
+            outline = face_outline(img, det.front_face_mask, thin_strips=False, channels="luma")
+        if not compressed or not outline:
+            channels = "colour"
+            outline = face_outline(img, det.front_face_mask, thin_strips=thin_strips)
         if not outline:
             refused.append(Refusal(bbox, f"face outline: {outline.reason}"))
             continue
         ys, xs = np.nonzero(det.front_face_mask)
         meas = FaceMeasurement(tuple(outline.sides), outline.corners_px,
                                np.column_stack([xs, ys]).astype(np.float64), outline.edge_noise_px,
-                               back_sides_px=silhouette_sides(img, det.mask, outline))
+                               back_sides_px=silhouette_sides(img, det.mask, outline, channels=channels))
         measured.append((meas, bbox, outline))
         if progress is not None:
             progress(i + 1, total)

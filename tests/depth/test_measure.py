@@ -13,6 +13,7 @@ import pytest
 
 from depth.errors import DepthError
 from depth.measure import (
+    EDGE_CHANNELS,
     CubeDetection,
     FaceOutline,
     FailedMeasurement,
@@ -479,3 +480,58 @@ def test_thin_strip_beside_a_side_does_not_move_the_face_edge(strip, background,
     assert o.strip_px[0] == 0.0 and o.strip_px[2] == 0.0 and o.strip_px[3] == 0.0
     if strip < 2.0:  # wider strips are split off by the detection's face mask
         assert o.strip_px[1] == pytest.approx(strip, abs=0.15)
+
+
+# ------------------------------------------------------------------------------ JPEG: luma
+
+
+def jpeg(srgb, quality=90):
+    """Through OpenCV's JPEG codec (libjpeg: 4:2:0 chroma subsampling at this quality)."""
+    import cv2
+    ok, buf = cv2.imencode(".jpg", cv2.cvtColor(np.round(srgb * 255).astype(np.uint8), cv2.COLOR_RGB2BGR),
+                           [cv2.IMWRITE_JPEG_QUALITY, quality])
+    assert ok
+    return cv2.cvtColor(cv2.imdecode(buf, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB).astype(np.float64) / 255.0
+
+
+@pytest.mark.parametrize("background", ["checker", "grey"])
+def test_luma_outlines_jpeg_faces_better_than_colour(background):
+    """Chroma at half resolution smears colour edges; luma keeps them where they were painted.
+
+    The true face masks are given, so that only the outline is tested (not the detection)."""
+    cubes = three_cubes()
+    image, _ = make_image((200, 240), cubes, background=background)
+    compressed = jpeg(image)
+    errors = {}
+    for channels in EDGE_CHANNELS:
+        errs = []
+        for c in cubes:
+            outline = face_outline(compressed, pixel_truth(image.shape[:2], c, "face"), thin_strips=False,
+                                   channels=channels)
+            assert outline, outline
+            errs.append(corner_errors(outline, c))
+        errors[channels] = np.concatenate(errs)
+    assert np.median(errors["luma"]) <= 0.35
+    assert np.median(errors["luma"]) < 0.5 * np.median(errors["colour"])
+    if background == "grey":  # no background texture: every corner
+        assert errors["luma"].max() <= 0.4 and errors["luma"].max() < 0.5 * errors["colour"].max()
+
+
+def test_luma_falls_back_to_colour_where_luma_shows_no_edge():
+    """A face with its background's luma: every edge point is placed on the colour profile."""
+    grey = 0.35  # make_image's plain background (linear)
+    y_grey = linear_to_srgb(np.array(grey))
+    # a red and a blue-green sRGB colour with exactly the background's luma Y'
+    red = np.array([0.75, 0.0, 0.0])
+    red[1] = (y_grey - 0.299 * red[0]) / 0.587
+    face = FakeCube((60.3, 40.6), (90.8, 41.2), (91.5, 150.2), (61.1, 149.1), albedo=tuple(srgb_to_linear(red)),
+                    front_shade=1.0, side=None)
+    image, mirror = make_image((200, 160), [face], background="grey", decoy=False)
+    assert np.isclose(image[95, 75] @ [0.299, 0.587, 0.114], image[95, 20] @ [0.299, 0.587, 0.114], atol=2 / 255)
+    mask = pixel_truth(image.shape[:2], face, "face")
+    colour = face_outline(image, mask, channels="colour")
+    assert colour and corner_errors(colour, face).max() <= 0.1
+    luma = face_outline(image, mask, channels="luma")
+    assert luma and np.array_equal(luma.corners_px, colour.corners_px)
+    with pytest.raises(DepthError, match="channels: expected one of colour, luma"):
+        face_outline(image, mask, channels="rgb")
