@@ -96,6 +96,20 @@ def _bbox(mask: np.ndarray) -> tuple:
     return (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1)
 
 
+DESPECKLE_PX = 5
+"""Median window for detecting cubes in JPEG images (their faces are then outlined on the image
+itself). On the bench's JPEG images, front-face corners found this way are 0.67 px off (median;
+90th percentile 4.4 px) against 1.42 px (9.1 px) without it; 3 px windows give 0.79, 7 px 0.90."""
+
+
+def despeckled(image: np.ndarray) -> np.ndarray:
+    """The image median-filtered per channel over `DESPECKLE_PX` (JPEG block and ringing artefacts
+    break faces into fragments of slightly different colour)."""
+    import cv2
+    u8 = np.round(np.clip(image, 0.0, 1.0) * 255.0).astype(np.uint8)
+    return cv2.medianBlur(u8, DESPECKLE_PX).astype(np.float64) / 255.0
+
+
 def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: float | None = None,
                 progress=None, compressed: bool = False) -> Reconstruction:
     """Find and estimate every cube in a mirror image.
@@ -108,9 +122,9 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     method : "exact" (default), "ddar", "dds" or "shape_prior"
     cube_size : float, optional — known edge length in metres
     progress : callable(done, total), optional
-    compressed : bool — the image went through lossy (JPEG) compression: edges are located on
-        luma (its chroma is subsampled; colour where luma shows no edge) and its ringing is not
-        taken for thin strips beside the faces
+    compressed : bool — the image went through lossy (JPEG) compression: cubes are detected on
+        the `despeckled` image, edges are located on luma (its chroma is subsampled; colour where
+        luma shows no edge) and its ringing is not taken for thin strips beside the faces
     """
     from raytrace.truth import mirror_mask, mirror_rays
     from depth.measure import detect_cubes, face_outline, silhouette_sides
@@ -128,7 +142,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         r = mirror_rays(camera, mirror, px)
         return r.points, r.directions
 
-    detections = detect_cubes(img, mask)
+    detections = detect_cubes(despeckled(img) if compressed else img, mask)
     thin_strips = not compressed  # JPEG ringing beside an edge mimics a thin strip
     cubes, refused, measured = [], [], []
     total = max(len(detections), 1)
