@@ -115,6 +115,11 @@ def score(result_cubes: list, truth: list, kinds: list, turns: list, tol_px: flo
             row["centre_err"] = float(np.linalg.norm(np.subtract(c["center"], t["center"])) / t["depth"])
             row["size_err"] = float(c["size"] / t["size"] - 1.0)
             row["corner_err_px"] = _corner_error_px(np.asarray(c["front_face_corners_px"]), np.asarray(t["front_face_corners_px"]))
+            # error in units of the reported first-order standard deviation
+            unc = c.get("uncertainty", {})
+            for key in ("depth", "size"):
+                sd = unc.get(key)
+                row[f"{key}_z"] = float((c[key] - t[key]) / sd) if sd and np.isfinite(sd) and sd > 0 else None
         cubes.append(row)
     return {"cubes": cubes, "false_positives": fp}
 
@@ -400,6 +405,27 @@ def failures(result: dict, method: str = "exact", limit: int = 15, log=print) ->
     return rows
 
 
+def calibration(result: dict, log=print) -> dict:
+    """How well the reported uncertainties cover the errors: the fraction of found cubes whose depth
+    (size) error is within 1, 2 and 3 reported standard deviations (a calibrated Gaussian σ: 68 /
+    95 / 99.7 %), per method and variant."""
+    out = {}
+    log("")
+    log("reported uncertainty vs actual error: % of found cubes with |error| <= 1 / 2 / 3 sigma (depth; size)")
+    variants = [v for v in VARIANTS + ("mitsuba",) if any(r["variant"] == v for r in result["records"])]
+    for m in METHODS:
+        for v in variants + [None]:
+            cells = []
+            for key in ("depth", "size"):
+                z = np.abs([c[f"{key}_z"] for r in result["records"] if r["method"] == m and (v is None or r["variant"] == v)
+                            for c in r["cubes"] if c["found"] and c.get(f"{key}_z") is not None])
+                frac = [float(np.mean(z <= k)) if len(z) else np.nan for k in (1, 2, 3)]
+                out[f"{m}/{v or 'all'}/{key}"] = {"within_1_2_3_sigma": frac, "n": int(len(z))}
+                cells.append(" / ".join("  —" if np.isnan(f) else f"{100 * f:3.0f}" for f in frac))
+            log(f"  {m:11s} {v or 'ALL':8s} {cells[0]}  ;  {cells[1]}")
+    return out
+
+
 def corner_stats(result: dict, log=print) -> dict:
     """Corner error (px) of the measured front faces vs truth, per variant (method-independent; from `exact`)."""
     out = {}
@@ -423,9 +449,10 @@ def main(argv=None) -> int:
     result = run(quick)
     summary = report(result)
     corners = corner_stats(result)
+    calib = calibration(result)
     fails = failures(result, "exact")
     OUT.mkdir(parents=True, exist_ok=True)
-    out = {"summary": summary, "corner_error_px": corners, "failures_exact": fails, **result}
+    out = {"summary": summary, "corner_error_px": corners, "calibration": calib, "failures_exact": fails, **result}
     (OUT / "reconstruct.json").write_text(json.dumps(out, indent=1, default=float) + "\n")
     print(f"\nwrote {OUT / 'reconstruct.json'}; total {time.perf_counter() - t:.0f} s")
     return 0

@@ -47,12 +47,16 @@ SIDES = ("left", "right", "top", "bottom")
 UPRIGHT_MISFIT_PX = 0.25
 """Rms edge misfit (pixels) above which `exact` also tries a face tilted off the vertical."""
 
-EDGE_BIAS_PX = 0.05
+EDGE_BIAS_PX = 0.15
 """Systematic edge-location uncertainty of one whole side, in pixels (σ of a common offset of all its
-points). Sub-pixel edge points scatter by only 0.01–0.02 px about their fitted side on our renders,
-but whole sides sit 0.03–0.15 px off the truth (shading of the neighbouring face, anti-aliasing).
-Treating the points as independent would make σ ten times too small; this per-side term keeps the
-first-order uncertainty honest."""
+points), for images without lossy compression. Sub-pixel edge points scatter by only 0.01–0.02 px
+about their fitted side, but whole sides sit off the truth by more (shading of the neighbouring face,
+anti-aliasing, thin strips); treating the points as independent would make σ far too small. The
+value is the robust spread of those per-side offsets measured on held-out renders
+(`python -m bench edges`)."""
+
+EDGE_BIAS_PX_COMPRESSED = 0.18
+"""The same for JPEG images (`FaceMeasurement.edge_bias_px`; `depth.reconstruct` sets it)."""
 
 
 @dataclass(frozen=True)
@@ -65,6 +69,7 @@ class FaceMeasurement:
     edge_noise_px : float, rms residual of the side fits in pixels
     back_sides_px : (left, right), each (M, 2) float64 or None: silhouette points of the cube's back
         vertical edge where a side face shows beside the front face (`depth.measure.silhouette_sides`)
+    edge_bias_px : float, σ of a common offset of a whole side (`EDGE_BIAS_PX`)
     """
 
     sides_px: tuple
@@ -72,6 +77,7 @@ class FaceMeasurement:
     face_px: np.ndarray
     edge_noise_px: float = 0.1
     back_sides_px: tuple = (None, None)
+    edge_bias_px: float = EDGE_BIAS_PX
 
 
 @dataclass(frozen=True)
@@ -217,7 +223,7 @@ def _kappa_extents(kap: dict, vertical: int) -> tuple[float, float, float, float
     k1, k2 = (ext_v, ext_h) if vertical == 0 else (ext_h, ext_v)
     # σ of each extent: two sides, each offset by the fit noise rms/√M and the per-side bias.
     side_sigma = np.hypot(kap["rms"] / np.sqrt(np.maximum(kap["counts"], 1)),
-                          EDGE_BIAS_PX * kap["kappa_per_px_across"])
+                          kap["edge_bias_px"] * kap["kappa_per_px_across"])
     sig_v = np.hypot(side_sigma[0], side_sigma[1])
     sig_h = np.hypot(side_sigma[2], side_sigma[3])
     s1, s2 = (sig_v, sig_h) if vertical == 0 else (sig_h, sig_v)
@@ -442,14 +448,14 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         return np.where(np.isfinite(r), r, 0.0)
 
     def covariance(j, r, n_params):
-        # Sandwich covariance with Σ = σ²·I + EDGE_BIAS_PX²·(ones within each side): a common offset
+        # Sandwich covariance with Σ = σ²·I + edge_bias_px²·(ones within each side): a common offset
         # of a whole side is not averaged away by its many points.
         sigma2 = float(r @ r) / max(len(r) - n_params, 1)  # point scatter (pixels²)
         jtj_inv = np.linalg.pinv(j.T @ j)
         meat = sigma2 * (j.T @ j)
         for side in range(6):
             g = j[sid == side].sum(axis=0)
-            meat += EDGE_BIAS_PX ** 2 * np.outer(g, g)
+            meat += meas.edge_bias_px ** 2 * np.outer(g, g)
         return jtj_inv @ meat @ jtj_inv
 
     # The front face is the cube face nearest to facing the mirror: within 54.7° of it.
@@ -545,6 +551,7 @@ def _prepare(rays: RayFunction, meas: FaceMeasurement, method: str, seed: int):
     except (DepthError, np.linalg.LinAlgError) as exc:
         return FailedEstimate(method, f"face outline in the XSlit frame: {exc}"), None
     vertical = int(np.argmax(np.abs(kap["dirs"][:2]).mean(axis=0)))
+    kap["edge_bias_px"] = float(meas.edge_bias_px)
     return LocalXSlit(local.origin, local.axes, local.xslit, local.rms_distance, local.slits, vertical), kap
 
 

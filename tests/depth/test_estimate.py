@@ -1,5 +1,7 @@
 """Tests of depth.estimate on exact synthetic measurements: exact recovery, model error, refusals."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -59,10 +61,12 @@ def test_dds_refuses_edges_parallel_to_the_slits(rig):
 
 
 def test_uncertainty_covers_noisy_measurements(rig):
+    """Independent point noise only: the point-scatter term alone (no per-side bias) covers it."""
     cube = rig.cube(0.5, 12.0)
     errs, stds = [], []
     for seed in range(12):
-        est = estimate_face(rig.rays, rig.measure(cube, noise_px=0.2, seed=seed), method="exact")
+        meas = dataclasses.replace(rig.measure(cube, noise_px=0.2, seed=seed), edge_bias_px=0.0)
+        est = estimate_face(rig.rays, meas, method="exact")
         assert est
         errs.append(abs(est.size - cube.size))
         stds.append(est.std["size"])
@@ -70,6 +74,33 @@ def test_uncertainty_covers_noisy_measurements(rig):
     errs, stds = np.array(errs), np.array(stds)
     assert np.mean(errs <= 3 * stds) >= 0.8
     assert np.median(stds) < 10 * np.median(errs) + 1e-6
+
+
+def _shift_sides(meas, offsets):
+    """Each whole side moved outward by its offset (px): left −u, right +u, top −v, bottom +v."""
+    outward = np.array([[-1.0, 0.0], [1.0, 0.0], [0.0, -1.0], [0.0, 1.0]])
+    sides = tuple(p + o * n for p, o, n in zip(meas.sides_px, offsets, outward))
+    return dataclasses.replace(meas, sides_px=sides)
+
+
+def test_uncertainty_covers_whole_side_offsets(rig):
+    """Sides offset as a whole by N(0, EDGE_BIAS_PX) (what `python -m bench edges` measures on
+    renders): the per-side bias term makes σ cover the errors; without it σ is far too small."""
+    from depth.estimate import EDGE_BIAS_PX
+    cube = rig.cube(0.5, 12.0)
+    rng = np.random.default_rng(4)
+    z, z_without = [], []
+    for _ in range(40):
+        meas = _shift_sides(rig.measure(cube), rng.normal(0.0, EDGE_BIAS_PX, 4))
+        meas = dataclasses.replace(meas, edge_noise_px=0.02)
+        for bias, out in ((EDGE_BIAS_PX, z), (0.0, z_without)):
+            est = estimate_face(rig.rays, dataclasses.replace(meas, edge_bias_px=bias), method="exact")
+            assert est
+            out.append(abs(est.size - cube.size) / est.std["size"])
+    z, z_without = np.array(z), np.array(z_without)
+    assert 0.5 <= np.mean(z <= 1) <= 0.9  # about 68 % within 1σ
+    assert np.mean(z <= 2) >= 0.85  # about 95 % within 2σ
+    assert np.median(z_without) > 5 * np.median(z)
 
 
 def test_bad_arguments(rig):

@@ -1,0 +1,93 @@
+"""Edge-location error of `depth.measure.face_outline` on held-out scenes: where `EDGE_BIAS_PX` comes from.
+
+The exact estimator's first-order uncertainty treats each measured side as its edge points plus one
+common offset of the whole side (σ = `depth.estimate.EDGE_BIAS_PX`, or `EDGE_BIAS_PX_COMPRESSED` for
+JPEG images). This bench measures that offset: on scenes the reconstruct bench does not use
+(`make_scenes(12, seed=77)`; that bench uses seeds 5 and 105), every usable front face detected by
+the reconstruct pipeline is outlined, and each side's signed offset from the true side (the exact
+reflection of the cube's edge, positive outward) is the median over its edge points. It prints,
+per image variant, the median offset and its robust spread (1.4826 × MAD), which is what the
+constants should be.
+
+Run: `python -m bench edges` (renders cached in bench/out/renders/).
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+SEED, N = 77, 12
+VARIANTS = ("clean", "noise", "blur", "jpeg")
+
+
+def true_sides(camera, mirror, truth: dict, n: int = 400) -> list:
+    """Image points of the true front-face sides, [left, right, top, bottom] ((n, 2) each)."""
+    from raytrace.truth import reflection_pixels
+    c3 = np.asarray(truth["front_face_corners"])
+    s = np.linspace(0.0, 1.0, n)[:, None]
+    sides = [reflection_pixels(camera, mirror, c3[i] + s * (c3[(i + 1) % 4] - c3[i]))[0] for i in range(4)]
+    mids = np.array([sd.mean(axis=0) for sd in sides])
+    left, right = int(np.argmin(mids[:, 0])), int(np.argmax(mids[:, 0]))
+    top, bottom = sorted((i for i in range(4) if i not in (left, right)), key=lambda i: mids[i, 1])
+    return [sides[i] for i in (left, right, top, bottom)]
+
+
+def side_offsets(measured: list, truth: list) -> np.ndarray:
+    """Median signed offset (px, positive outward) of each measured side from its true side."""
+    out = []
+    for k, (p, t) in enumerate(zip(measured, truth)):
+        if k < 2:  # left/right: horizontal distance at the same row
+            o = np.argsort(t[:, 1])
+            d = p[:, 0] - np.interp(p[:, 1], t[o, 1], t[o, 0])
+        else:  # top/bottom: vertical distance at the same column
+            o = np.argsort(t[:, 0])
+            d = p[:, 1] - np.interp(p[:, 0], t[o, 0], t[o, 1])
+        out.append(np.median(d) * (-1.0 if k in (0, 2) else 1.0))
+    return np.array(out)
+
+
+def measure(variant: str) -> np.ndarray:
+    """Per-side offsets (N, 4) of every outlined face of the held-out scenes in `variant`."""
+    from bench.bench_reconstruct import our_render, variant as degrade
+    from bench.scenes import make_scenes
+    from depth.measure import detect_cubes, face_outline
+    from depth.reconstruct import despeckled
+    from raytrace.truth import cube_truth, mirror_mask
+    compressed = variant == "jpeg"
+    rows = []
+    for sc in make_scenes(N, SEED):
+        cam, mir = sc.setup.camera.build(), sc.setup.mirror.build()
+        truth = [cube_truth(cam, mir, c.build()) for c in sc.setup.objects]
+        centres = np.array([np.mean(t["front_face_corners_px"], axis=0) for t in truth])
+        img = degrade(our_render(sc.setup), variant, seed=int(sc.key[:8], 16)).astype(np.float64) / 255.0
+        for det in detect_cubes(despeckled(img) if compressed else img, mirror_mask(cam, mir)):
+            if not det.usable:
+                continue
+            outline = face_outline(img, det.front_face_mask, thin_strips=not compressed,
+                                   channels="luma" if compressed else "colour")
+            if not outline:
+                continue
+            j = int(np.argmin(np.linalg.norm(centres - outline.corners_px.mean(axis=0), axis=1)))
+            rows.append(side_offsets(outline.sides, true_sides(cam, mir, truth[j])))
+    return np.array(rows)
+
+
+def main() -> int:
+    from depth.estimate import EDGE_BIAS_PX, EDGE_BIAS_PX_COMPRESSED
+    print(f"held-out scenes make_scenes({N}, seed={SEED}); per-side offset of measured edges from the truth, px "
+          "(positive outward)")
+    print(f"{'variant':8s} {'sides':>5s} {'median':>7s} {'robust sd':>9s} {'rms':>6s} {'90% |off|':>9s}")
+    for v in VARIANTS:
+        off = measure(v).ravel()
+        med = float(np.median(off))
+        rsd = float(1.4826 * np.median(np.abs(off - med)))
+        print(f"{v:8s} {len(off):5d} {med:+7.3f} {rsd:9.3f} {np.sqrt(np.mean(off ** 2)):6.3f} "
+              f"{np.percentile(np.abs(off), 90):9.3f}", flush=True)
+    print(f"in use: EDGE_BIAS_PX = {EDGE_BIAS_PX} (PNG), EDGE_BIAS_PX_COMPRESSED = {EDGE_BIAS_PX_COMPRESSED} (JPEG)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
