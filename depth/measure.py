@@ -1320,6 +1320,7 @@ def silhouette_sides(
     min_gap_px: float = 0.75,
     min_points: int = 8,
     channels: str = "colour",
+    max_scatter_px: float = 0.5,
 ) -> tuple:
     """Sub-pixel points of the cube's silhouette beside its front face: (left, right).
 
@@ -1329,7 +1330,9 @@ def silhouette_sides(
     lies more than `min_gap_px` beyond the face's own side, a side face is visible and these points
     are the image of the cube's back vertical edge; such a side is returned as (M, 2) float64
     (u, v), otherwise None. Silhouettes against the background do not depend on how the faces are
-    lit, and the back edge tells how far the cube is turned. `channels` as in `face_outline`.
+    lit, and the back edge tells how far the cube is turned. `channels` as in `face_outline`. A side
+    whose points scatter about their fitted line by more than `max_scatter_px` (robust σ) is not an
+    edge but noise or compression artefacts along the blob's border, and is dropped.
     """
     image = _check_image(image)
     h, w = image.shape[:2]
@@ -1366,6 +1369,8 @@ def silhouette_sides(
             continue
         a, b = outline.lines[side]
         gap = sign * (pts[:, 0] - (a * pts[:, 1] + b))
-        out.append(pts if np.median(gap) > min_gap_px else None)
+        res = pts[:, 0] - np.polyval(np.polyfit(pts[:, 1], pts[:, 0], 1), pts[:, 1])
+        scatter = 1.4826 * np.median(np.abs(res - np.median(res)))
+        out.append(pts if np.median(gap) > min_gap_px and scatter <= max_scatter_px else None)
     return tuple(out)
 

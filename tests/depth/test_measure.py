@@ -19,6 +19,7 @@ from depth.measure import (
     FailedMeasurement,
     detect_cubes,
     face_outline,
+    silhouette_sides,
     srgb_to_linear,
 )
 
@@ -553,3 +554,29 @@ def test_despeckled_jpeg_gives_more_faces_outlined_within_half_a_pixel():
                 n += bool(o) and min(corner_errors(o, c).max() for c in cubes) <= 0.5
             good[name] = n
         assert good["despeckled"] > good["raw"], (background, good)
+
+
+# --------------------------------------------------------------------------- silhouette
+
+
+def test_silhouette_gives_the_back_edge_beside_a_side_face_and_drops_a_ragged_border():
+    cube = FakeCube((60.3, 30.6), (84.8, 31.4), (85.5, 150.2), (61.1, 149.1), side="left", side_width=4.5,
+                    albedo=COLOURS["red"])
+    image, _ = make_image((180, 150), [cube], background="grey", decoy=False)
+    face = pixel_truth(image.shape[:2], cube, "face")
+    blob = face | pixel_truth(image.shape[:2], cube, "strip")
+    outline = face_outline(image, face)
+    left, right = silhouette_sides(image, blob, outline)
+    assert right is None  # no side face shows on the right
+    assert left is not None and len(left) > 60
+    # the back edge: the strip's outer boundary, 4.5 px left of the face's left side
+    assert np.abs(left[:, 0] - (cube.left(left[:, 1]) - 4.5)).max() < 0.15
+    # a ragged border (every other row one pixel wider, as JPEG ringing can make it) is no edge
+    ragged, rag_blob = image.copy(), blob.copy()
+    rows = np.flatnonzero(blob.any(axis=1))[::2]
+    for r in rows:
+        c = int(np.argmax(blob[r]))
+        ragged[r, c - 1] = ragged[r, c]
+        rag_blob[r, c - 1] = True
+    assert silhouette_sides(ragged, rag_blob, outline)[0] is None
+    assert silhouette_sides(ragged, rag_blob, outline, max_scatter_px=np.inf)[0] is not None
