@@ -107,7 +107,7 @@ def test_reflection_law(d, n):
     r = reflect(d[None], n[None])[0]
     assert abs(np.linalg.norm(r) - 1) < 1e-14
     assert abs(-(d @ n) - (r @ n)) < 1e-14  # angle of incidence = angle of reflection
-    assert abs(np.linalg.det(np.stack([d, n, r]))) < 1e-14  # coplanar
+    assert abs(np.cross(d, n) @ r) < 1e-14  # coplanar (triple product; det's LU warns on exact d ∥ n)
     assert np.linalg.norm(np.cross(r - d, n)) < 1e-13  # r − d is along the normal
     np.testing.assert_allclose(reflect(r[None], n[None])[0], d, atol=1e-14)
 
