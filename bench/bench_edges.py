@@ -22,18 +22,6 @@ SEED, N = 77, 12
 VARIANTS = ("clean", "noise", "blur", "jpeg")
 
 
-def true_sides(camera, mirror, truth: dict, n: int = 400) -> list:
-    """Image points of the true front-face sides, [left, right, top, bottom] ((n, 2) each)."""
-    from raytrace.truth import reflection_pixels
-    c3 = np.asarray(truth["front_face_corners"])
-    s = np.linspace(0.0, 1.0, n)[:, None]
-    sides = [reflection_pixels(camera, mirror, c3[i] + s * (c3[(i + 1) % 4] - c3[i]))[0] for i in range(4)]
-    mids = np.array([sd.mean(axis=0) for sd in sides])
-    left, right = int(np.argmin(mids[:, 0])), int(np.argmax(mids[:, 0]))
-    top, bottom = sorted((i for i in range(4) if i not in (left, right)), key=lambda i: mids[i, 1])
-    return [sides[i] for i in (left, right, top, bottom)]
-
-
 def side_offsets(measured: list, truth: list) -> np.ndarray:
     """Median signed offset (px, positive outward) of each measured side from its true side."""
     out = []
@@ -50,7 +38,7 @@ def side_offsets(measured: list, truth: list) -> np.ndarray:
 
 def measure(variant: str) -> np.ndarray:
     """Per-side offsets (N, 4) of every outlined face of the held-out scenes in `variant`."""
-    from bench.bench_reconstruct import our_render, variant as degrade
+    from bench.bench_reconstruct import our_render, true_sides, variant as degrade
     from bench.scenes import make_scenes
     from depth.measure import detect_cubes, face_outline
     from depth.reconstruct import despeckled
@@ -70,7 +58,8 @@ def measure(variant: str) -> np.ndarray:
             if not outline:
                 continue
             j = int(np.argmin(np.linalg.norm(centres - outline.corners_px.mean(axis=0), axis=1)))
-            rows.append(side_offsets(outline.sides, true_sides(cam, mir, truth[j])))
+            sides, order = true_sides(cam, mir, truth[j], per_side=400, ends=0.0)
+            rows.append(side_offsets(outline.sides, [sides[i] for i in order]))
     return np.array(rows)
 
 

@@ -124,19 +124,25 @@ def score(result_cubes: list, truth: list, kinds: list, turns: list, tol_px: flo
     return {"cubes": cubes, "false_positives": fp}
 
 
+def true_sides(camera, mirror, truth_cube: dict, per_side: int = 80, ends: float = 0.03):
+    """The exact image of a true front face's four edges ((per_side, 2) each, corner order, `ends`
+    of each edge left out) and which of them are (left, right, top, bottom)."""
+    from raytrace.truth import reflection_pixels
+    c3 = np.asarray(truth_cube["front_face_corners"])
+    s = np.linspace(ends, 1.0 - ends, per_side)[:, None]
+    sides = [reflection_pixels(camera, mirror, c3[i] + s * (c3[(i + 1) % 4] - c3[i]))[0] for i in range(4)]
+    mids = np.array([sd.mean(axis=0) for sd in sides])
+    left, right = int(np.argmin(mids[:, 0])), int(np.argmax(mids[:, 0]))
+    top, bottom = sorted((i for i in range(4) if i not in (left, right)), key=lambda i: mids[i, 1])
+    return sides, (left, right, top, bottom)
+
+
 def oracle_measurements(camera, mirror, truth: list, per_side: int = 80):
     """FaceMeasurements from the exact reflections of each true front face's edges (no image)."""
     from depth.estimate import FaceMeasurement
-    from raytrace.truth import reflection_pixels
     out = []
     for t in truth:
-        c3 = np.asarray(t["front_face_corners"])
-        s = np.linspace(0.03, 0.97, per_side)[:, None]
-        sides = [reflection_pixels(camera, mirror, c3[i] + s * (c3[(i + 1) % 4] - c3[i]))[0] for i in range(4)]
-        mids = np.array([sd.mean(axis=0) for sd in sides])
-        left, right = int(np.argmin(mids[:, 0])), int(np.argmax(mids[:, 0]))
-        rest = [i for i in range(4) if i not in (left, right)]
-        top, bottom = sorted(rest, key=lambda i: mids[i, 1])
+        sides, (left, right, top, bottom) = true_sides(camera, mirror, t, per_side)
         px = np.asarray(t["front_face_corners_px"])
 
         def shared(a, b):
