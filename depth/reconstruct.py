@@ -99,8 +99,8 @@ def _bbox(mask: np.ndarray) -> tuple:
 
 DESPECKLE_PX = 5
 """Median window for detecting cubes in JPEG images (their faces are then outlined on the image
-itself). On the bench's JPEG images, front-face corners found this way are 0.67 px off (median;
-90th percentile 4.4 px) against 1.42 px (9.1 px) without it; 3 px windows give 0.79, 7 px 0.90."""
+itself). On the reconstruct bench's JPEG images it brought the measured front-face corners from
+1.78 to 0.78 px off the truth (median; `python -m bench reconstruct`); 3 and 7 px windows did worse."""
 
 
 def despeckled(image: np.ndarray) -> np.ndarray:
@@ -153,11 +153,9 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             refused.append(Refusal(bbox, det.reason or ("cut by the mirror's edge" if det.cut_by_mirror_edge
                                                         else "occluded by another cube")))
             continue
-        channels = "colour"
-        if compressed:  # chroma at half resolution: luma first, colour where luma shows no edge
-            channels = "luma"
-            outline = face_outline(img, det.front_face_mask, thin_strips=False, channels="luma")
-        if not compressed or not outline:
+        channels = "luma" if compressed else "colour"  # JPEG: chroma at half resolution
+        outline = face_outline(img, det.front_face_mask, thin_strips=thin_strips, channels=channels)
+        if not outline and compressed:  # luma failed as a whole: colour alone
             channels = "colour"
             outline = face_outline(img, det.front_face_mask, thin_strips=thin_strips)
         if not outline:
