@@ -1,13 +1,14 @@
 """Edge-location error of `depth.measure.face_outline` on held-out scenes: where `EDGE_BIAS_PX` comes from.
 
 The exact estimator's first-order uncertainty treats each measured side as its edge points plus one
-common offset of the whole side (σ = `depth.estimate.EDGE_BIAS_PX`, or `EDGE_BIAS_PX_COMPRESSED` for
-JPEG images). This bench measures that offset: on scenes the reconstruct bench does not use
+common offset of the whole side (σ = `depth.estimate.EDGE_BIAS_PX`, `EDGE_BIAS_PX_BLURRED` for faces
+with blurred edges, `EDGE_BIAS_PX_COMPRESSED` for JPEG images). This bench measures that offset: on scenes the reconstruct bench does not use
 (`make_scenes(12, seed=77)`; that bench uses seeds 5 and 105), every usable front face detected by
 the reconstruct pipeline is outlined, and each side's signed offset from the true side (the exact
 reflection of the cube's edge, positive outward) is the median over its edge points. It prints,
-per image variant, the median offset and its robust spread (1.4826 × MAD), which is what the
-constants should be.
+per image variant and for sharp / blurred PNG faces (`FaceOutline.blurred`), the median offset m,
+its robust spread sd (1.4826 × MAD) and √(m² + sd²), the σ that covers both: what the constants
+should be.
 
 Run: `python -m bench edges` (renders cached in bench/out/renders/).
 """
@@ -36,15 +37,16 @@ def side_offsets(measured: list, truth: list) -> np.ndarray:
     return np.array(out)
 
 
-def measure(variant: str) -> np.ndarray:
-    """Per-side offsets (N, 4) of every outlined face of the held-out scenes in `variant`."""
+def measure(variant: str) -> tuple[np.ndarray, np.ndarray]:
+    """Per-side offsets (N, 4) of every outlined face of the held-out scenes in `variant`, and
+    whether each face's outline found its edges blurred (`FaceOutline.blurred`) (N,)."""
     from bench.bench_reconstruct import our_render, true_sides, variant as degrade
     from bench.scenes import make_scenes
     from depth.measure import detect_cubes, face_outline
     from depth.reconstruct import despeckled
     from raytrace.truth import cube_truth, mirror_mask
     compressed = variant == "jpeg"
-    rows = []
+    rows, blurred = [], []
     for sc in make_scenes(N, SEED):
         cam, mir = sc.setup.camera.build(), sc.setup.mirror.build()
         truth = [cube_truth(cam, mir, c.build()) for c in sc.setup.objects]
@@ -60,21 +62,34 @@ def measure(variant: str) -> np.ndarray:
             j = int(np.argmin(np.linalg.norm(centres - outline.corners_px.mean(axis=0), axis=1)))
             sides, order = true_sides(cam, mir, truth[j], per_side=400, ends=0.0)
             rows.append(side_offsets(outline.sides, [sides[i] for i in order]))
-    return np.array(rows)
+            blurred.append(outline.blurred)
+    return np.array(rows), np.array(blurred, dtype=bool)
+
+
+def _row(name: str, off: np.ndarray) -> str:
+    med = float(np.median(off))
+    rsd = float(1.4826 * np.median(np.abs(off - med)))
+    return (f"{name:16s} {len(off):5d} {med:+7.3f} {rsd:9.3f} {np.hypot(med, rsd):9.3f} "
+            f"{np.sqrt(np.mean(off ** 2)):6.3f} {np.percentile(np.abs(off), 90):9.3f}")
 
 
 def main() -> int:
-    from depth.estimate import EDGE_BIAS_PX, EDGE_BIAS_PX_COMPRESSED
+    from depth.estimate import EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED
     print(f"held-out scenes make_scenes({N}, seed={SEED}); per-side offset of measured edges from the truth, px "
-          "(positive outward)")
-    print(f"{'variant':8s} {'sides':>5s} {'median':>7s} {'robust sd':>9s} {'rms':>6s} {'90% |off|':>9s}")
+          "(positive outward); PNG faces split by FaceOutline.blurred")
+    print(f"{'variant':16s} {'sides':>5s} {'median':>7s} {'robust sd':>9s} {'√(m²+sd²)':>9s} {'rms':>6s} "
+          f"{'90% |off|':>9s}")
+    sharp, soft = [], []
     for v in VARIANTS:
-        off = measure(v).ravel()
-        med = float(np.median(off))
-        rsd = float(1.4826 * np.median(np.abs(off - med)))
-        print(f"{v:8s} {len(off):5d} {med:+7.3f} {rsd:9.3f} {np.sqrt(np.mean(off ** 2)):6.3f} "
-              f"{np.percentile(np.abs(off), 90):9.3f}", flush=True)
-    print(f"in use: EDGE_BIAS_PX = {EDGE_BIAS_PX} (PNG), EDGE_BIAS_PX_COMPRESSED = {EDGE_BIAS_PX_COMPRESSED} (JPEG)")
+        off, blurred = measure(v)
+        print(_row(v, off.ravel()), f"  ({blurred.sum()}/{len(blurred)} faces blurred)", flush=True)
+        if v != "jpeg":
+            sharp.append(off[~blurred].ravel())
+            soft.append(off[blurred].ravel())
+    print(_row("PNG, sharp", np.concatenate(sharp)))
+    print(_row("PNG, blurred", np.concatenate(soft)))
+    print(f"in use: EDGE_BIAS_PX = {EDGE_BIAS_PX} (PNG), EDGE_BIAS_PX_BLURRED = {EDGE_BIAS_PX_BLURRED} "
+          f"(PNG, blurred edges), EDGE_BIAS_PX_COMPRESSED = {EDGE_BIAS_PX_COMPRESSED} (JPEG)")
     return 0
 
 

@@ -58,6 +58,12 @@ value is the robust spread of those per-side offsets measured on held-out render
 EDGE_BIAS_PX_COMPRESSED = 0.18
 """The same for JPEG images (`FaceMeasurement.edge_bias_px`; `depth.reconstruct` sets it)."""
 
+EDGE_BIAS_PX_BLURRED = 0.28
+"""The same for faces whose edges are blurred (`depth.measure.FaceOutline.blurred`). Blur applied
+to the sRGB values also moves edges outward in linear light (by 0.15 px on the held-out renders);
+whether an image was blurred before or after its encoding cannot be told, so that offset is not
+corrected but covered: √(0.146² + 0.236²)."""
+
 
 @dataclass(frozen=True)
 class FaceMeasurement:

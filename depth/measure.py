@@ -120,6 +120,9 @@ class FaceOutline:
         beyond each side by the edge-spread-function pass, 0 where the side is a single step.
         The face's side is the strip's inner edge; for left/right the outer edge is the cube's
         silhouette (see `silhouette_sides`).
+    edge_width_px : float
+        Width of the narrowest side's edge ramp found by that pass (≈ 1 px or less for a sharp
+        image, more for a blurred one: `blurred`); NaN where the pass did not run or found no side.
     """
 
     sides: list[np.ndarray]
@@ -131,9 +134,15 @@ class FaceOutline:
     edge_noise_px: float
     contrast: np.ndarray
     strip_px: np.ndarray = field(default_factory=lambda: np.zeros(4))
+    edge_width_px: float = float("nan")
 
     def __bool__(self) -> bool:
         return True
+
+    @property
+    def blurred(self) -> bool:
+        """Edges measurably wider than a pixel (`BLURRED_RAMP_PX`): a defocused or blurred image."""
+        return bool(self.edge_width_px > BLURRED_RAMP_PX)
 
     @property
     def n_points(self) -> int:
@@ -719,10 +728,11 @@ def face_outline(
         model = result
     strip = np.zeros(4)
     colour = linear[..., :3]
+    ramp = float("nan")
     if thin_strips:
-        model, strip = _esf_pass(colour, model, min_contrast)
+        model, strip, ramp = _esf_pass(colour, model, min_contrast)
     if strip.any():  # re-centre the band on the moved sides and measure them again
-        model, again = _esf_pass(colour, model, min_contrast, sides=np.flatnonzero(strip > 0))
+        model, again, _ = _esf_pass(colour, model, min_contrast, sides=np.flatnonzero(strip > 0))
         strip = np.where(again > 0, again, strip)
     lines, quads, corners, sides, normals, rms, contrast, residuals = model
     all_res = np.concatenate(residuals)
@@ -736,6 +746,7 @@ def face_outline(
         edge_noise_px=float(np.sqrt(np.mean(all_res**2))),
         contrast=contrast,
         strip_px=strip,
+        edge_width_px=ramp,
     )
 
 
@@ -1103,6 +1114,9 @@ def _fit_two_steps(pos, wts, ybar, E, W, scale, p, q):
     return sse_f + sse_r, coef, rho
 
 
+BLURRED_RAMP_PX = 1.25
+"""Edge ramps wider than this (px) mean a blurred image: no thin-strip search, and a larger edge
+uncertainty (`depth.estimate.EDGE_BIAS_PX_BLURRED`)."""
 _ESF_SCALES = np.arange(0.6, 1.81, 0.2)  # ramp widths tried (px): sharper or blurred optics
 
 
@@ -1266,7 +1280,7 @@ def _parabola_min(x: np.ndarray, y: np.ndarray, k: int) -> float:
 def _esf_pass(linear, model, min_contrast, margin=2.5, sides=range(4)):
     """Shift each side of a refined model to its edge found by `_esf_side`.
 
-    Returns (model, strip_px (4,)) with the sides' lines/quadratics shifted along their normals,
+    Returns (model, strip_px (4,), ramp_px) with the sides' lines/quadratics shifted along their normals,
     the edge points moved by the same offsets, and the corners recomputed. Only the `sides`
     given (indices into left, right, top, bottom) are measured."""
     which = [int(i) for i in sides]
@@ -1286,8 +1300,9 @@ def _esf_pass(linear, model, min_contrast, margin=2.5, sides=range(4)):
             found[i] = res
     # a blurred image (edges wider than a pixel on every side) hides a thin strip's steps in
     # the blur's tails: leave the sides to the per-point estimate
-    if found and min(r[3] for r in found.values()) > 1.25:
-        return model, np.zeros(4)
+    ramp = float(min(r[3] for r in found.values())) if found else float("nan")
+    if ramp > BLURRED_RAMP_PX:
+        return model, np.zeros(4), ramp
     for i, res in found.items():
         e, ws, e_one, _ = res
         if ws <= 0:  # one step: the per-point area estimate is already exact
@@ -1305,8 +1320,8 @@ def _esf_pass(linear, model, min_contrast, margin=2.5, sides=range(4)):
         new_sides[i] = sides[i] + e * normals[i]
     new_corners = _corners(lines, quads)
     if isinstance(new_corners, FailedMeasurement):
-        return model, np.zeros(4)
-    return (lines, quads, new_corners, new_sides, normals, rms, contrast, residuals), strip
+        return model, np.zeros(4), ramp
+    return (lines, quads, new_corners, new_sides, normals, rms, contrast, residuals), strip, ramp
 
 
 def silhouette_sides(

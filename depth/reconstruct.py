@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from depth.errors import DepthError
-from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_COMPRESSED, METHODS, CubeEstimate, FaceMeasurement,
-                            estimate_face, estimate_faces_shape_prior)
+from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED, METHODS, CubeEstimate,
+                            FaceMeasurement, estimate_face, estimate_faces_shape_prior)
 
 __all__ = ["ALL_METHODS", "CubeResult", "Refusal", "Reconstruction", "reconstruct", "check_image"]
 
@@ -165,7 +165,8 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         meas = FaceMeasurement(tuple(outline.sides), outline.corners_px,
                                np.column_stack([xs, ys]).astype(np.float64), outline.edge_noise_px,
                                back_sides_px=silhouette_sides(img, det.mask, outline, channels=channels),
-                               edge_bias_px=EDGE_BIAS_PX_COMPRESSED if compressed else EDGE_BIAS_PX)
+                               edge_bias_px=EDGE_BIAS_PX_COMPRESSED if compressed
+                               else EDGE_BIAS_PX_BLURRED if outline.blurred else EDGE_BIAS_PX)
         measured.append((meas, bbox, outline))
         if progress is not None:
             progress(i + 1, total)

@@ -580,3 +580,17 @@ def test_silhouette_gives_the_back_edge_beside_a_side_face_and_drops_a_ragged_bo
         rag_blob[r, c - 1] = True
     assert silhouette_sides(ragged, rag_blob, outline)[0] is None
     assert silhouette_sides(ragged, rag_blob, outline, max_scatter_px=np.inf)[0] is not None
+
+
+def test_outline_tells_a_blurred_image_by_its_edge_width():
+    from scipy import ndimage
+    cubes = three_cubes()
+    image, _ = make_image((200, 240), cubes, background="grey")
+    soft = ndimage.gaussian_filter(image, sigma=(1.0, 1.0, 0))
+    for c in cubes:
+        mask = pixel_truth(image.shape[:2], c, "face")
+        sharp, blurred = face_outline(image, mask), face_outline(soft, mask)
+        assert sharp.edge_width_px <= 1.1 and not sharp.blurred
+        assert blurred.edge_width_px > 1.5 and blurred.blurred
+    jpeg_like = face_outline(image, pixel_truth(image.shape[:2], cubes[0], "face"), thin_strips=False)
+    assert np.isnan(jpeg_like.edge_width_px) and not jpeg_like.blurred  # no edge-spread pass, no verdict
