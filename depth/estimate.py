@@ -52,11 +52,12 @@ EDGE_BIAS_PX = 0.15
 points), for images without lossy compression. Sub-pixel edge points scatter by only 0.01–0.02 px
 about their fitted side, but whole sides sit off the truth by more (shading of the neighbouring face,
 anti-aliasing, thin strips); treating the points as independent would make σ far too small. The
-value is the robust spread of those per-side offsets measured on held-out renders
-(`python -m bench edges`)."""
+value is √(median² + robust spread²) of those per-side offsets on held-out renders
+(`python -m bench edges`: sharp PNG faces +0.022 and 0.143 px)."""
 
 EDGE_BIAS_PX_COMPRESSED = 0.18
-"""The same for JPEG images (`FaceMeasurement.edge_bias_px`; `depth.reconstruct` sets it)."""
+"""The same for JPEG images (+0.003 and 0.178 px; `FaceMeasurement.edge_bias_px`, which
+`depth.reconstruct` sets)."""
 
 EDGE_BIAS_PX_BLURRED = 0.28
 """The same for faces whose edges are blurred (`depth.measure.FaceOutline.blurred`). Blur applied
