@@ -111,15 +111,16 @@ def simulate_to_files(setup: Setup, out_png, spp: int = 4, seed: int = 0, progre
     """`simulate` and `write_simulation` in one pass (what `catadioptric simulate` runs).
 
     The float ray maps are rendered straight into OUT.gt.npz's pages (`NpzWriter`'s mapped
-    members) instead of being rendered to memory and copied into the file: the same files, byte
-    for byte, with about 100 MB less memory to fill at 1600×1200. All or nothing, as
+    members) instead of being rendered to memory and copied into the file: the same PNG, TOML and
+    truth bytes and the same arrays in the .npz (laid out for mapping, so not the same .npz bytes as
+    `write_simulation`), with about 100 MB less memory to fill at 1600×1200. All or nothing, as
     `write_simulation`. Returns the simulation (its ray maps are views of the written file) and
     the four paths.
     """
+    from raytrace.render import OUTPUTS
     paths = output_paths(out_png)
     w, h = setup.camera.resolution
-    shapes = {"mirror_point": ((h, w, 3), np.float64), "reflected_dir": ((h, w, 3), np.float64),
-              "ray_distance": ((h, w), np.float32)}
+    shapes = {name: ((h, w) + OUTPUTS[name][0], OUTPUTS[name][1]) for name in MAPPED_KEYS}
     if sum(int(np.prod(s)) * np.dtype(t).itemsize for s, t in shapes.values()) > MAX_BYTES // 2:
         sim = simulate(setup, spp=spp, seed=seed, progress=progress, workers=workers)
         return sim, write_simulation(sim, out_png)
