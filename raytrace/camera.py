@@ -1,7 +1,8 @@
 """Cameras: `PinholeCamera`, the ideal two-slit `XSlitCamera` and `PushbroomCamera`.
 
 Every camera maps pixels (u, v) = (column, row) to world rays with `rays` and world points
-back to pixels with `project`; `sample_offsets` gives reproducible sub-pixel sample offsets.
+back to pixels with `project`; `sample_offsets` gives a reproducible stratified sub-pixel pattern
+and `pixel_sample_offsets` that pattern rotated differently in every pixel.
 Conventions are those of docs/CONVENTIONS.md (OpenCV pinhole, pixel (0, 0) is the centre of
 the top-left pixel).
 """
@@ -22,7 +23,8 @@ from ._validate import (
 )
 from .errors import RaytraceError
 
-__all__ = ["PinholeCamera", "XSlitCamera", "PushbroomCamera", "sample_offsets", "pixel_grid"]
+__all__ = ["PinholeCamera", "XSlitCamera", "PushbroomCamera", "sample_offsets", "pixel_sample_offsets",
+           "pixel_grid"]
 
 
 def pixel_grid(resolution: tuple[int, int]) -> np.ndarray:
@@ -69,6 +71,38 @@ def sample_offsets(spp: int, seed: int = 0) -> np.ndarray:
         jitter = rng.random((spp, 2))
         offsets = np.stack([(perm_u + jitter[:, 0]) / spp, (perm_v + jitter[:, 1]) / spp], axis=1)
     return offsets - 0.5
+
+
+def _splitmix64(x: np.ndarray) -> np.ndarray:
+    """The splitmix64 finaliser on uint64 arrays (wrapping arithmetic): a counter-based hash."""
+    x = (x + np.uint64(0x9E3779B97F4A7C15)) & np.uint64(0xFFFFFFFFFFFFFFFF)
+    x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return x ^ (x >> np.uint64(31))
+
+
+def pixel_sample_offsets(pixels, spp: int, seed: int = 0) -> np.ndarray:
+    """Sub-pixel sample offsets for the given flat pixel indices: `sample_offsets(spp, seed)`
+    toroidally shifted (Cranley–Patterson rotation) by a per-pixel amount hashed from (seed, pixel).
+
+    Every pixel keeps a stratified pattern, each sample is uniform over its pixel (so a pixel's
+    mean is an unbiased estimate of its area average) and neighbouring pixels' errors are
+    independent. One pattern shared by all pixels would instead give a straight edge the same
+    coverage error in every pixel along it: an aliased, systematically shifted edge. The result
+    depends only on (pixel, spp, seed), not on how the pixels are split among workers.
+
+    Returns
+    -------
+    offsets : (N, spp, 2) float64 in [-0.5, 0.5)
+    """
+    base = sample_offsets(spp, seed) + 0.5
+    if spp == 1:
+        return np.zeros((len(np.atleast_1d(pixels)), 1, 2))
+    idx = np.asarray(pixels, dtype=np.int64).astype(np.uint64).reshape(-1)
+    h = _splitmix64(idx * np.uint64(2) + _splitmix64(np.full(1, seed, dtype=np.uint64)))
+    h2 = _splitmix64(h)
+    shift = np.stack([h >> np.uint64(11), h2 >> np.uint64(11)], axis=1).astype(np.float64) * 2.0**-53
+    return np.mod(base[None, :, :] + shift[:, None, :], 1.0) - 0.5
 
 
 def _normalize_rows(v: np.ndarray) -> np.ndarray:

@@ -5,7 +5,7 @@ analytically (a float64 quadratic over the rays, `CylinderMirror.first_hits`), a
 tessellated into Embree and refined. Every hit is recomputed in float64 (cube face planes, the
 ground plane, the mirror's surface) and shaded Lambertian with a directional light plus ambient light. The numpy twin (`backend="numpy"`) replaces Embree with
 analytic slab and cylinder tests and shares everything else. Large images are split in tiles
-over worker processes (Embree holds the GIL). Supersampling is adaptive: the `spp` stratified
+over worker processes (Embree holds the GIL). Supersampling is adaptive: the `spp` stratified (per-pixel rotated)
 samples are traced only for pixels whose 3×3 neighbourhood shows an edge (a change of object,
 cube face, checker cell or mirror/direct view) in the pixel-centre pass; elsewhere the surface
 is flat-shaded so the centre sample is the pixel's exact average.
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._embree import build_scene, first_hits
-from .camera import sample_offsets
+from .camera import pixel_sample_offsets
 from .errors import RaytraceError
 from .mirror import EPS_T, CylinderMirror, reflect
 from .scene import Scene
@@ -489,17 +489,17 @@ def _sample_chunk(start: int, stop: int) -> int:
     cam = st["camera"]
     w = cam.resolution[0]
     flat = st["edge_index"][start:stop]
-    offsets = st["offsets"]
+    spp = st["spp"]
     v, u = np.divmod(flat, w)
     centres = np.stack([u, v], axis=1).astype(np.float64)
-    px = (centres[:, None, :] + offsets[None, :, :]).reshape(-1, 2)
+    px = (centres[:, None, :] + pixel_sample_offsets(flat, spp, st["seed"])).reshape(-1, 2)
     o, d = cam.rays(px)
     color = np.empty((len(px), 3))
     rays = 0
     for a in range(0, len(px), BATCH_RAYS):
         b = min(a + BATCH_RAYS, len(px))
         rays += _trace_into(_tracer(), o[a:b], d[a:b], st["bounces"], {"color": color[a:b]})
-    st["out"]["image"][flat] = color.reshape(len(flat), len(offsets), 3).mean(axis=1)
+    st["out"]["image"][flat] = color.reshape(len(flat), spp, 3).mean(axis=1)
     return rays
 
 
@@ -673,7 +673,8 @@ def render(
     ----------
     scene : Scene
     camera : PinholeCamera, XSlitCamera or PushbroomCamera (anything with `resolution` and `rays`)
-    spp : int >= 1, stratified jittered samples per (edge) pixel, from `sample_offsets(spp, seed)`
+    spp : int >= 1, stratified jittered samples per (edge) pixel, from
+        `pixel_sample_offsets(pixel, spp, seed)` (a pattern rotated differently in every pixel)
     seed : int >= 0; the same seed gives the same bytes
     bounces : int >= 0, the most mirror reflections followed per ray
     progress : callable progress(done: int, total: int) or None
@@ -713,7 +714,7 @@ def render(
     edge_index = _shared((npx,), np.int64)
     _STATE.clear()
     _STATE.update(scene=scene, camera=camera, bounces=bounces, backend=backend, out=out,
-                  edge_index=edge_index, offsets=sample_offsets(spp, seed))
+                  edge_index=edge_index, spp=spp, seed=seed)
     tiles = [(a, min(a + TILE_PIXELS, npx)) for a in range(0, npx, TILE_PIXELS)]
     parallel = workers > 1 and npx >= MIN_PARALLEL_PIXELS
     pool = None
