@@ -1,6 +1,6 @@
 """Reconstruction benchmark: `main()` runs `depth.reconstruct` on the `bench.scenes` cases and scores every estimator.
 
-Cases: 24 seeded scenes rendered by our renderer (`catadioptric.simulate`, 4 spp) in four
+Cases: 20 seeded scenes rendered by our renderer (`catadioptric.simulate`, 16 spp as the Mitsuba renders) in four
 variants (clean, Gaussian noise σ = 2/255, Gaussian blur σ = 0.7 px, JPEG quality 90), plus 3
 scenes rendered by Mitsuba 3 with other lighting. For each estimator (exact, ddar, dds,
 shape_prior) and variant it reports detection recall and false positives (matched one-to-one by
@@ -30,7 +30,7 @@ METHODS = ("exact", "ddar", "dds", "shape_prior")
 VARIANTS = ("clean", "noise", "blur", "jpeg")
 N_SCENES, N_MITSUBA, SEED, MITSUBA_SEED = 20, 3, 5, 105
 QUICK_SCENES, QUICK_MITSUBA = 5, 1
-SPP = 4
+SPP = 16  # as the Mitsuba renders; a camera integrates over the whole pixel
 OUT = Path(__file__).resolve().parent / "out"
 TARGETS = {"axis_median": 0.01, "axis_max": 0.03, "size_median": 0.01, "seconds_2048": 2.0}
 
@@ -53,7 +53,7 @@ def _cached(path: Path, make) -> np.ndarray:
 def our_render(setup) -> np.ndarray:
     from catadioptric.simulate import simulate
     from raytrace.render import linear_to_srgb8
-    key = scene_hash(setup, f"ours-spp{SPP}-seed0")
+    key = scene_hash(setup, f"ours-spp{SPP}-rotated-seed0")
     return _cached(OUT / "renders" / f"{key}-ours.png",
                    lambda: linear_to_srgb8(simulate(setup, spp=SPP, seed=0).render.image))
 
