@@ -47,6 +47,16 @@ SIDES = ("left", "right", "top", "bottom")
 UPRIGHT_MISFIT_PX = 0.25
 """Rms edge misfit (pixels) above which `exact` also tries a face tilted off the vertical."""
 
+NO_SIDE_FACE_GAP_PX = 0.75
+"""A measured silhouette gap (`FaceMeasurement.side_gaps_px`) up to this says no side face shows
+beside that side of the front face (as `depth.measure.silhouette`'s `min_gap_px`)."""
+
+SIDE_WIDTH_SLACK_PX = 0.5
+"""`exact` penalises a pose whose side face would show wider than the measured gap plus this."""
+
+SIDE_WIDTH_SIGMA_PX = 0.25
+"""Scale (px) of that penalty: each SIDE_WIDTH_SIGMA_PX too wide counts as one pixel of edge misfit."""
+
 EDGE_BIAS_PX = 0.15
 """Systematic edge-location uncertainty of one whole side, in pixels (σ of a common offset of all its
 points), for images without lossy compression. Sub-pixel edge points scatter by only 0.01–0.02 px
@@ -77,6 +87,9 @@ class FaceMeasurement:
     back_sides_px : (left, right), each (M, 2) float64 or None: silhouette points of the cube's back
         vertical edge where a side face shows beside the front face (`depth.measure.silhouette_sides`)
     edge_bias_px : float, σ of a common offset of a whole side (`EDGE_BIAS_PX`)
+    side_gaps_px : (left, right) float, how far (px) the cube's silhouette lies outward of the front
+        face's side (`depth.measure.Silhouette.gaps_px`); NaN where unknown. A gap of about 0 means no
+        side face shows there, so ``exact`` rules out turns that would show one.
     """
 
     sides_px: tuple
@@ -85,6 +98,7 @@ class FaceMeasurement:
     edge_noise_px: float = 0.1
     back_sides_px: tuple = (None, None)
     edge_bias_px: float = EDGE_BIAS_PX
+    side_gaps_px: tuple = (float("nan"), float("nan"))
 
 
 @dataclass(frozen=True)
@@ -449,19 +463,47 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     if np.count_nonzero(weight[sid < 4]) < 8:
         return FailedEstimate("exact", "too few edge points with a usable pixel scale")
 
+    # Sides where the silhouette shows no side face: a pose that would show one there is penalised.
+    gaps = np.asarray(meas.side_gaps_px, dtype=np.float64)
+    no_side = [k for k in (0, 1) if meas.back_sides_px[k] is None and np.isfinite(gaps[k])
+               and gaps[k] <= NO_SIDE_FACE_GAP_PX and np.count_nonzero(sid == k) >= 3]
+    allowed = {k: max(gaps[k], 0.0) + SIDE_WIDTH_SLACK_PX for k in no_side}
+
+    def side_widths(c, axes, s):
+        """Image width (px) each side face in `no_side` would show at this pose (0 when hidden): the
+        side plane's normal coordinate w falls from 0 at the front edge to −s at the back edge;
+        dw per pixel outward comes from the rays half a pixel apart."""
+        out = []
+        for k in no_side:
+            m = sid == k
+            w1 = _side_plane_w(p[m], d[m], c, axes, sign[k], s)
+            w2 = _side_plane_w(p2[m], d2[m], c, axes, sign[k], s)
+            dw_out = (w2 - w1) / 0.5 * (1.0 if k == 1 else -1.0)  # image outward: −u left, +u right
+            dw_out = dw_out[np.isfinite(dw_out)]
+            rate = float(np.median(dw_out)) if len(dw_out) else 0.0
+            out.append(s / -rate if rate < 0 else 0.0)
+        return np.array(out)
+
     def resid(x):
         rot, c, s = unpack(x)
-        r = coords(p, d, c, _square_axes(rot, base), s) * weight
-        return np.where(np.isfinite(r), r, 0.0)
+        axes = _square_axes(rot, base)
+        r = coords(p, d, c, axes, s) * weight
+        r = np.where(np.isfinite(r), r, 0.0)
+        if no_side:
+            excess = side_widths(c, axes, s) - np.array([allowed[k] for k in no_side])
+            r = np.r_[r, np.maximum(excess, 0.0) / SIDE_WIDTH_SIGMA_PX]
+        return r
 
     def covariance(j, r, n_params):
         # Sandwich covariance with Σ = σ²·I + edge_bias_px²·(ones within each side): a common offset
         # of a whole side is not averaged away by its many points.
-        sigma2 = float(r @ r) / max(len(r) - n_params, 1)  # point scatter (pixels²)
-        jtj_inv = np.linalg.pinv(j.T @ j)
-        meat = sigma2 * (j.T @ j)
+        n = len(sid)  # rows past the edge points: the side-width penalties (unit σ by construction)
+        je, jp = j[:n], j[n:]
+        sigma2 = float(r[:n] @ r[:n]) / max(n - n_params, 1)  # point scatter (pixels²)
+        jtj_inv = np.linalg.pinv(je.T @ je + jp.T @ jp)
+        meat = sigma2 * (je.T @ je) + jp.T @ jp
         for side in range(6):
-            g = j[sid == side].sum(axis=0)
+            g = je[sid == side].sum(axis=0)
             meat += meas.edge_bias_px ** 2 * np.outer(g, g)
         return jtj_inv @ meat @ jtj_inv
 
@@ -526,7 +568,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             weight = weight_upright
     rot, c, s = unpack(x_best)
     normal = _square_axes(rot, base)[2]
-    r = resid(x_best)
+    r = resid(x_best)[:len(sid)]  # the edge points' misfit
 
     # Propagate to the centre, size and z numerically.
     def derived(x):

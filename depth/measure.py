@@ -27,6 +27,8 @@ __all__ = [
     "detect_cubes",
     "face_outline",
     "silhouette_sides",
+    "silhouette",
+    "Silhouette",
     "srgb_to_linear",
     "EDGE_CHANNELS",
 ]
@@ -1324,7 +1326,26 @@ def _esf_pass(linear, model, min_contrast, margin=2.5, sides=range(4)):
     return (lines, quads, new_corners, new_sides, normals, rms, contrast, residuals), strip, ramp
 
 
-def silhouette_sides(
+@dataclass(frozen=True)
+class Silhouette:
+    """The cube's silhouette beside its front face (`silhouette`).
+
+    sides : (left, right), each (M, 2) float64 sub-pixel points of the back vertical edge where a
+        side face shows beside the front face, else None
+    gaps_px : (2,) float64, median distance (px) from the front face's left/right side outward to
+        the silhouette; about 0 where no side face shows, NaN where it could not be measured
+    """
+
+    sides: tuple
+    gaps_px: np.ndarray
+
+
+def silhouette_sides(image: np.ndarray, blob_mask: np.ndarray, outline: FaceOutline, **kwargs) -> tuple:
+    """`silhouette(...).sides`: the back-edge points beside the front face, (left, right)."""
+    return silhouette(image, blob_mask, outline, **kwargs).sides
+
+
+def silhouette(
     image: np.ndarray,
     blob_mask: np.ndarray,
     outline: FaceOutline,
@@ -1336,8 +1357,8 @@ def silhouette_sides(
     min_points: int = 8,
     channels: str = "colour",
     max_scatter_px: float = 0.5,
-) -> tuple:
-    """Sub-pixel points of the cube's silhouette beside its front face: (left, right).
+) -> Silhouette:
+    """Sub-pixel points of the cube's silhouette beside its front face, and its gaps to the face.
 
     Along the rows of the front face (less `margin_frac` of its height at the top and bottom, where
     top or bottom faces may show), the blob's outermost boundary against the background is located
@@ -1347,7 +1368,9 @@ def silhouette_sides(
     (u, v), otherwise None. Silhouettes against the background do not depend on how the faces are
     lit, and the back edge tells how far the cube is turned. `channels` as in `face_outline`. A side
     whose points scatter about their fitted line by more than `max_scatter_px` (robust σ) is not an
-    edge but noise or compression artefacts along the blob's border, and is dropped.
+    edge but noise or compression artefacts along the blob's border, and is dropped (its gap is
+    still reported: it says a side face shows). A gap of about 0 says no side face shows: a turn that
+    would show one is ruled out (`depth.estimate` uses it so).
     """
     image = _check_image(image)
     h, w = image.shape[:2]
@@ -1357,7 +1380,7 @@ def silhouette_sides(
     span = bottom - top
     rows = np.arange(np.ceil(top + margin_frac * span), np.floor(bottom - margin_frac * span) + 1).astype(int)
     rows = rows[(rows >= 0) & (rows < h)]
-    out = []
+    out, gaps = [], np.full(2, np.nan)
     for side, sign in ((0, -1.0), (1, 1.0)):
         if len(rows) < min_points:
             out.append(None)
@@ -1386,6 +1409,7 @@ def silhouette_sides(
         gap = sign * (pts[:, 0] - (a * pts[:, 1] + b))
         res = pts[:, 0] - np.polyval(np.polyfit(pts[:, 1], pts[:, 0], 1), pts[:, 1])
         scatter = 1.4826 * np.median(np.abs(res - np.median(res)))
-        out.append(pts if np.median(gap) > min_gap_px and scatter <= max_scatter_px else None)
-    return tuple(out)
+        gaps[side] = float(np.median(gap))
+        out.append(pts if gaps[side] > min_gap_px and scatter <= max_scatter_px else None)
+    return Silhouette(tuple(out), gaps)
 

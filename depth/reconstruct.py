@@ -128,7 +128,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         luma shows no edge) and its ringing is not taken for thin strips beside the faces
     """
     from raytrace.truth import mirror_mask, mirror_rays
-    from depth.measure import detect_cubes, face_outline, silhouette_sides
+    from depth.measure import detect_cubes, face_outline, silhouette
 
     if method not in ALL_METHODS:
         raise DepthError(f"method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
@@ -162,9 +162,10 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             refused.append(Refusal(bbox, f"face outline: {outline.reason}"))
             continue
         ys, xs = np.nonzero(det.front_face_mask)
+        sil = silhouette(img, det.mask, outline, channels=channels)
         meas = FaceMeasurement(tuple(outline.sides), outline.corners_px,
                                np.column_stack([xs, ys]).astype(np.float64), outline.edge_noise_px,
-                               back_sides_px=silhouette_sides(img, det.mask, outline, channels=channels),
+                               back_sides_px=sil.sides, side_gaps_px=tuple(sil.gaps_px),
                                edge_bias_px=EDGE_BIAS_PX_COMPRESSED if compressed
                                else EDGE_BIAS_PX_BLURRED if outline.blurred else EDGE_BIAS_PX)
         measured.append((meas, bbox, outline))

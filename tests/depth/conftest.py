@@ -34,9 +34,11 @@ class MirrorRig:
         rot = Rotation.from_euler("y", yaw).as_matrix() @ Rotation.from_euler("z", np.deg2rad(roll_deg)).as_matrix()
         return Cube(size, c, rot)
 
-    def measure(self, cube, n=50, noise_px=0.0, seed=0):
+    def measure(self, cube, n=50, noise_px=0.0, seed=0, gaps=False, side_offset_px=0.0):
         """Exact (or noisy) FaceMeasurement of the cube's front face, with the silhouette of its back
-        vertical edges where a side face shows (more than 0.75 px beyond the front face)."""
+        vertical edges where a side face shows (more than 0.75 px beyond the front face). `gaps`: also
+        the silhouette's gaps to the front face (0 where the side face is hidden). `side_offset_px`:
+        σ of a common outward offset added to each whole front side (as images give)."""
         _, corners, centre = cube.front_face(self.mirror)
         n_out = (centre - cube.center) / np.linalg.norm(centre - cube.center)
         t = np.linspace(0.08, 0.92, n)[:, None]
@@ -47,15 +49,21 @@ class MirrorRig:
         if noise_px:
             px = [p + rng.normal(0, noise_px, p.shape) for p in px]
             back = [p + rng.normal(0, noise_px, p.shape) for p in back]
+        if side_offset_px:
+            mid = np.mean(np.concatenate(px), axis=0)
+            for i, p in enumerate(px):  # outward: away from the face's middle, along u or v
+                k = int(np.argmax(np.abs(p.mean(0) - mid) / np.ptp(np.concatenate(px), axis=0)))
+                px[i] = p + np.eye(2)[k] * np.sign(p.mean(0) - mid)[k] * rng.normal(0, side_offset_px)
         pairs = [(0, 2), (1, 3)]
         du = [abs(px[i][:, 0].mean() - px[j][:, 0].mean()) for i, j in pairs]
         lr, tb = pairs[int(np.argmax(du))], pairs[1 - int(np.argmax(du))]
         il, ir = sorted(lr, key=lambda i: px[i][:, 0].mean())
         top, bottom = sorted([px[tb[0]], px[tb[1]]], key=lambda p: p[:, 1].mean())
-        back_sides = []
+        back_sides, side_gaps = [], []
         for i, sign in ((il, -1.0), (ir, 1.0)):
             gap = sign * (back[i][:, 0] - px[i][:, 0])
             back_sides.append(back[i] if np.median(gap) > 0.75 else None)
+            side_gaps.append(max(float(np.median(gap)), 0.0) if gaps else float("nan"))
         outline = np.concatenate(px)
         lo, hi = np.floor(outline.min(0)), np.ceil(outline.max(0))
         gu, gv = np.meshgrid(np.arange(lo[0], hi[0] + 1), np.arange(lo[1], hi[1] + 1))
@@ -63,7 +71,7 @@ class MirrorRig:
         inside = Path(outline).contains_points(grid)
         corners_px = reflection_pixels(self.camera, self.mirror, corners)[0]
         return FaceMeasurement((px[il], px[ir], top, bottom), corners_px, grid[inside], max(noise_px, 0.0),
-                               back_sides_px=tuple(back_sides))
+                               back_sides_px=tuple(back_sides), side_gaps_px=tuple(side_gaps))
 
     def depth(self, cube):
         return float(self.mirror.distance_to_axis(cube.center[None])[0])

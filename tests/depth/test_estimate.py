@@ -136,3 +136,42 @@ def test_exact_on_turned_cubes_with_noisy_edges_uses_the_back_edge(rig, yaw):
         assert est
         errors.append(centre_error(rig, est, cube))
     assert np.median(errors) < 0.005 and max(errors) < 0.01
+
+
+@pytest.mark.parametrize("distance, azimuth", [(0.35, -35.0), (0.6, 10.0), (0.9, 30.0)])
+def test_exact_with_silhouette_gaps_still_recovers_axis_facing_cubes_exactly(rig, distance, azimuth):
+    """True gaps (0 where the side face is hidden, the thin true width where it shows) are consistent
+    with the true pose: the side-width penalty must not move an exact solution."""
+    cube = rig.cube(distance, azimuth)
+    meas = rig.measure(cube, gaps=True)
+    assert all(np.isfinite(meas.side_gaps_px))
+    est = estimate_face(rig.rays, meas, method="exact", up=rig.mirror.axis)
+    assert est and centre_error(rig, est, cube) < 1e-6
+
+
+@pytest.mark.parametrize("yaw", [20.0, -20.0])
+def test_exact_rules_out_turns_that_would_show_a_hidden_side_face(rig, yaw):
+    """A face turned 20° shows a side face several pixels wide. Told (falsely) that the silhouette
+    shows none on either side, `exact` must return a pose whose side faces image no wider than the
+    allowed slack, checked independently by reflecting the estimated cube's back edges."""
+    from raytrace.truth import reflection_pixels
+    from depth.estimate import SIDE_WIDTH_SLACK_PX
+    cube = rig.cube(0.5, 5.0, yaw_deg=yaw)
+    true = rig.measure(cube, gaps=True)
+    assert max(true.side_gaps_px) > 3.0  # the truth shows a side face
+    lied = dataclasses.replace(true, back_sides_px=(None, None), side_gaps_px=(0.0, 0.0))
+    free = estimate_face(rig.rays, dataclasses.replace(lied, side_gaps_px=(np.nan, np.nan)), up=rig.mirror.axis)
+    assert free and centre_error(rig, free, cube) < 1e-6  # without the claim: the exact truth
+    est = estimate_face(rig.rays, lied, method="exact", up=rig.mirror.axis)
+    assert est
+    n = est.normal / np.linalg.norm(est.normal)
+    v = np.array([0.0, 1.0, 0.0])
+    h = np.cross(n, v)
+    for side in (-1.0, 1.0):
+        front = est.front_face_center + side * h * est.size / 2 + np.outer(np.linspace(-0.3, 0.3, 7) * est.size, v)
+        back = front - n * est.size
+        pf = reflection_pixels(rig.camera, rig.mirror, front)[0]
+        pb = reflection_pixels(rig.camera, rig.mirror, back)[0]
+        outward = np.sign(pf[:, 0].mean() - reflection_pixels(rig.camera, rig.mirror, est.front_face_center[None])[0][0, 0])
+        width = np.median(outward * (pb[:, 0] - pf[:, 0]))
+        assert width <= SIDE_WIDTH_SLACK_PX + 0.1

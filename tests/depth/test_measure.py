@@ -19,6 +19,7 @@ from depth.measure import (
     FailedMeasurement,
     detect_cubes,
     face_outline,
+    silhouette,
     silhouette_sides,
     srgb_to_linear,
 )
@@ -571,6 +572,8 @@ def test_silhouette_gives_the_back_edge_beside_a_side_face_and_drops_a_ragged_bo
     assert left is not None and len(left) > 60
     # the back edge: the strip's outer boundary, 4.5 px left of the face's left side
     assert np.abs(left[:, 0] - (cube.left(left[:, 1]) - 4.5)).max() < 0.15
+    gaps = silhouette(image, blob, outline).gaps_px  # silhouette beyond the face's side: 4.5 px, 0 px
+    assert abs(gaps[0] - 4.5) < 0.15 and abs(gaps[1]) < 0.1
     # a ragged border (every other row one pixel wider, as JPEG ringing can make it) is no edge
     ragged, rag_blob = image.copy(), blob.copy()
     rows = np.flatnonzero(blob.any(axis=1))[::2]
