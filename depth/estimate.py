@@ -467,31 +467,45 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     gaps = np.asarray(meas.side_gaps_px, dtype=np.float64)
     no_side = [k for k in (0, 1) if meas.back_sides_px[k] is None and np.isfinite(gaps[k])
                and gaps[k] <= NO_SIDE_FACE_GAP_PX and np.count_nonzero(sid == k) >= 3]
-    allowed = {k: max(gaps[k], 0.0) + SIDE_WIDTH_SLACK_PX for k in no_side}
+    allowed = np.array([max(gaps[k], 0.0) + SIDE_WIDTH_SLACK_PX for k in no_side])
+
+    # up to 16 points per such side (their median rate is all that is used), with their neighbours
+    # half a pixel away, in one array: [points; neighbours]
+    pick = [np.flatnonzero(sid == k)[:: max(np.count_nonzero(sid == k) // 16, 1)][:16] for k in no_side]
+    if no_side:
+        idx = np.concatenate(pick)
+        side_of = np.concatenate([np.full(len(ix), j) for j, ix in enumerate(pick)])
+        w_p, w_d = np.r_[p[idx], p2[idx]], np.r_[d[idx], d2[idx]]
+        w_sign = np.tile(sign[np.concatenate([np.full(len(ix), k) for k, ix in zip(no_side, pick)])], 2)
+        outward = np.where(np.isin(sid[idx], [1]), 1.0, -1.0)  # image outward: −u left, +u right
 
     def side_widths(c, axes, s):
         """Image width (px) each side face in `no_side` would show at this pose (0 when hidden): the
         side plane's normal coordinate w falls from 0 at the front edge to −s at the back edge;
         dw per pixel outward comes from the rays half a pixel apart."""
-        out = []
-        for k in no_side:
-            m = sid == k
-            w1 = _side_plane_w(p[m], d[m], c, axes, sign[k], s)
-            w2 = _side_plane_w(p2[m], d2[m], c, axes, sign[k], s)
-            dw_out = (w2 - w1) / 0.5 * (1.0 if k == 1 else -1.0)  # image outward: −u left, +u right
-            dw_out = dw_out[np.isfinite(dw_out)]
-            rate = float(np.median(dw_out)) if len(dw_out) else 0.0
-            out.append(s / -rate if rate < 0 else 0.0)
-        return np.array(out)
+        w = _side_plane_w(w_p, w_d, c, axes, w_sign, s)
+        rate = (w[len(idx):] - w[: len(idx)]) / 0.5 * outward
+        out = np.zeros(len(no_side))
+        for j in range(len(no_side)):
+            r = rate[side_of == j]
+            r = r[np.isfinite(r)]
+            med = float(np.median(r)) if len(r) else 0.0
+            out[j] = s / -med if med < 0 else 0.0
+        return out
+
+    penalised = False  # the side-width rows are added only once a fit needs them (they cost time)
+
+    def excess_width(x):
+        rot, c, s = unpack(x)
+        return side_widths(c, _square_axes(rot, base), s) - allowed
 
     def resid(x):
         rot, c, s = unpack(x)
         axes = _square_axes(rot, base)
         r = coords(p, d, c, axes, s) * weight
         r = np.where(np.isfinite(r), r, 0.0)
-        if no_side:
-            excess = side_widths(c, axes, s) - np.array([allowed[k] for k in no_side])
-            r = np.r_[r, np.maximum(excess, 0.0) / SIDE_WIDTH_SIGMA_PX]
+        if penalised:
+            r = np.concatenate([r, np.maximum(side_widths(c, axes, s) - allowed, 0.0) / SIDE_WIDTH_SIGMA_PX])
         return r
 
     def covariance(j, r, n_params):
@@ -547,7 +561,13 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     # Stage 1, upright. The ddar start can be tens of degrees off for a face turned from the local
     # XSlit frame (one looking at the mirror axis from the side), so the turn starts from several values.
     turns = np.deg2rad([0.0, -15.0, 15.0, -30.0, 30.0, -45.0, 45.0])
-    stage1 = refined(False, [np.r_[t, np.zeros(6)] for t in turns])
+    starts = [np.r_[t, np.zeros(6)] for t in turns]
+    weight0 = weight
+    stage1 = refined(False, starts)
+    if no_side and (stage1 is None or np.any(excess_width(stage1[0]) > 0)):
+        # the best fit shows a side face where the silhouette shows none: fit again, ruling that out
+        penalised, weight = True, weight0
+        stage1 = refined(False, starts)
     if stage1 is None:
         return FailedEstimate("exact", "least squares did not converge from any starting turn")
     x_best, sol1 = stage1
