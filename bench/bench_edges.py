@@ -7,8 +7,8 @@ with blurred edges, `EDGE_BIAS_PX_COMPRESSED` for JPEG images). This bench measu
 the reconstruct pipeline is outlined, and each side's signed offset from the true side (the exact
 reflection of the cube's edge, positive outward) is the median over its edge points. It prints,
 per image variant and for sharp / blurred PNG faces (`FaceOutline.blurred`), the median offset m,
-its robust spread sd (1.4826 × MAD) and √(m² + sd²), the σ that covers both: what the constants
-should be.
+its robust spread sd (1.4826 × MAD), √(m² + sd²), the rms and the 90th percentile of |offset| (the
+heavy tail the constants must also cover; see bench/README.md).
 
 Run: `python -m bench edges` (renders cached in bench/out/renders/).
 """
