@@ -477,10 +477,9 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     pick = [np.flatnonzero(sid == k)[:: max(np.count_nonzero(sid == k) // 16, 1)][:16] for k in no_side]
     if no_side:
         idx = np.concatenate(pick)
-        side_of = np.concatenate([np.full(len(ix), j) for j, ix in enumerate(pick)])
         w_p, w_d = np.r_[p[idx], p2[idx]], np.r_[d[idx], d2[idx]]
-        w_sign = np.tile(sign[np.concatenate([np.full(len(ix), k) for k, ix in zip(no_side, pick)])], 2)
-        outward = np.where(np.isin(sid[idx], [1]), 1.0, -1.0)  # image outward: −u left, +u right
+        w_sign = np.tile(sign[sid[idx]], 2)
+        outward = np.where(sid[idx] == 1, 1.0, -1.0)  # image outward: −u left, +u right
 
     def side_widths(c, axes, s):
         """Image width (px) each side face in `no_side` would show at this pose (0 when hidden): the
@@ -489,8 +488,8 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         w = _side_plane_w(w_p, w_d, c, axes, w_sign, s)
         rate = (w[len(idx):] - w[: len(idx)]) / 0.5 * outward
         out = np.zeros(len(no_side))
-        for j in range(len(no_side)):
-            r = rate[side_of == j]
+        for j, k in enumerate(no_side):
+            r = rate[sid[idx] == k]
             r = r[np.isfinite(r)]
             med = float(np.median(r)) if len(r) else 0.0
             out[j] = s / -med if med < 0 else 0.0
