@@ -14,7 +14,12 @@ points of its four sides:
 - ``exact`` (beyond the paper): the pose and size of the square in 3D, as a non-central PnP:
   each edge point's reflected ray must meet its side of the square. Seven unknowns (rotation
   vector, face centre, edge length) are solved by `scipy.optimize.least_squares`, started
-  from ``ddar``. Any orientation is allowed.
+  from ``ddar``. Any orientation is allowed. The cube's silhouette says how to read each
+  left/right side: beside a distinct side face, the silhouette is that face's back edge (fitted
+  too); with no distinct side face on either side, the measured outline is the cube's outer
+  contour, which is right both for a hidden side face and for one lit like the front face and
+  merged with it; opposite a distinct side face, this side's face is hidden, and poses showing it
+  are penalised. Faces whose edges no square explains (rms misfit > `MAX_EDGE_MISFIT_PX`) are refused.
 
 All estimates carry first-order standard deviations propagated from the edge-fit residuals.
 A face that cannot be estimated gives a falsy `FailedEstimate` with its reason.
@@ -47,15 +52,29 @@ SIDES = ("left", "right", "top", "bottom")
 UPRIGHT_MISFIT_PX = 0.25
 """Rms edge misfit (pixels) above which `exact` also tries a face tilted off the vertical."""
 
-NO_SIDE_FACE_GAP_PX = 0.75
-"""A measured silhouette gap (`FaceMeasurement.side_gaps_px`) up to this says no side face shows
-beside that side of the front face (as `depth.measure.silhouette`'s `min_gap_px`)."""
+PLACE_NFEV = 8
+"""Function evaluations `exact` spends placing the face at each starting turn (centre and size only)."""
+
+MAX_EDGE_MISFIT_PX = 1.0
+"""`exact` refuses a face whose edge points miss the best-fitting square by more than this (rms,
+pixels): sub-pixel edges that a square cannot explain are not one cube's face (an outline run onto a
+neighbouring face, a wrong corner). Good fits are at 0.05–0.1 px."""
 
 SIDE_WIDTH_SLACK_PX = 0.5
-"""`exact` penalises a pose whose side face would show wider than the measured gap plus this."""
+"""Where the other side shows a distinct side face, `exact` penalises a pose whose side face on this
+side would image wider than the measured silhouette gap plus this (that face is hidden)."""
 
 SIDE_WIDTH_SIGMA_PX = 0.25
 """Scale (px) of that penalty: each SIDE_WIDTH_SIGMA_PX too wide counts as one pixel of edge misfit."""
+
+LOG_SIZE_RANGE = np.log(10.0)
+"""When `exact` places the face at a starting turn, it keeps the edge length within this factor (as a
+log) of its ddar start: far beyond lies only a degenerate fit, a face grown without bound."""
+
+NO_SIDE_FACE_GAP_PX = 0.75
+"""A measured silhouette gap (`FaceMeasurement.side_gaps_px`) up to this says no distinct side face
+shows beside that side of the front face (as `depth.measure.silhouette`'s `min_gap_px`): the side
+is then fitted as the cube's outer contour by ``exact``."""
 
 EDGE_BIAS_PX = 0.15
 """Systematic edge-location uncertainty of one whole side, in pixels (σ of a common offset of all its
@@ -92,7 +111,8 @@ class FaceMeasurement:
     edge_bias_px : float, σ of a common offset of a whole side (`EDGE_BIAS_PX`)
     side_gaps_px : (left, right) float, how far (px) the cube's silhouette lies outward of the front
         face's side (`depth.measure.Silhouette.gaps_px`); NaN where unknown. A gap of about 0 means no
-        side face shows there, so ``exact`` rules out turns that would show one.
+        distinct side face shows there: ``exact`` then reads that side as the cube's outer contour
+        (or, opposite a distinct side face, as a side whose face is hidden).
     """
 
     sides_px: tuple
@@ -399,8 +419,9 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
 
     Residuals are pixel-like: each is a metric offset in the face (or side) plane divided by the
     metres that one pixel spans there, re-measured at the current pose. Stage 1 fits an upright
-    face (turned about `up` only) from several starting turns; stage 2 frees the tilt only when
-    the upright face misfits the edges.
+    face (turned about `up` only) from several starting turns (when the outline is the outer
+    contour, the face is first placed at each turn: ddar's centre and size fit none of them);
+    stage 2 frees the tilt only when the upright face misfits the edges.
     """
     sides = []
     for i, sp in enumerate(meas.sides_px):
@@ -431,6 +452,21 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     scale = max(s0, 1e-6)
     is_lr = sid < 2
     is_back = sid >= 4
+    is_tb = (sid == 2) | (sid == 3)
+    # Left/right sides beside which the silhouette shows no distinct side face: either none is seen
+    # or it is seen but as bright as the front face, merged with it. Both are fitted as the cube's
+    # outer contour (`contour_shift`).
+    gaps = np.asarray(meas.side_gaps_px, dtype=np.float64)
+    # Where the other side shows a distinct side face, the cube is turned that way and this side's
+    # face is hidden: its edge is the front face's own.
+    no_back = all(sp is None for sp in meas.back_sides_px)
+    no_gap = [k for k in (0, 1) if np.isfinite(gaps[k]) and gaps[k] <= NO_SIDE_FACE_GAP_PX]
+    contour_sides = no_gap if no_back else []
+    # ... and a pose that would show it is penalised (up to 16 points per side carry the penalty).
+    hidden = [np.flatnonzero(sid == k)[:: max(np.count_nonzero(sid == k) // 16, 1)][:16]
+              for k in ([] if no_back else no_gap)]
+    hid_idx = np.concatenate(hidden) if hidden else np.zeros(0, dtype=int)
+    hid_allowed = np.maximum(gaps[sid[hid_idx]], 0.0) + SIDE_WIDTH_SLACK_PX
     # Side signs: where each side lies in the face's (a = vertical, b = horizontal) coordinates.
     a0, b0 = _face_coords(p, d, c0, base.T)
     sign = np.zeros(6)
@@ -447,12 +483,43 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         s = s0 * np.exp(x[6]) if cube_size is None else cube_size
         return x[:3], c, s
 
+    back_idx = np.flatnonzero(is_back)
+    # the points a contour can move: left/right points of contour sides, and top/bottom points
+    lr_on = [np.flatnonzero(sid == k) for k in contour_sides]
+    tb_idx = np.flatnonzero(is_tb) if contour_sides else np.zeros(0, dtype=int)
+
     def coords(q, r, c, axes, s):
         """Per point: its measured coordinate minus where the model puts its edge (metres)."""
         a, b = _face_coords(q, r, c, axes)
-        front = np.where(is_lr, b, a) - sign[sid] * s / 2.0
-        w = _side_plane_w(q, r, c, axes, sign[sid], s)  # back edges: on the side plane at w = −s
-        return np.where(is_back, w + s, front)
+        out = np.where(is_lr, b, a) - sign[sid] * s / 2.0
+        if len(back_idx):  # back edges: on the side plane at w = −s
+            out[back_idx] = _side_plane_w(q[back_idx], r[back_idx], c, axes, sign[sid[back_idx]], s) + s
+        if contour_sides:
+            contour_shift(out, r, axes, s, b)
+        return out
+
+    def contour_shift(out, r, axes, s, b):
+        """Where a side shows no distinct side face, its points lie on the cube's outer contour: the
+        outermost vertical edge (the back one when that side face is seen, merged with the front
+        face) and, over a seen side face, its top or bottom edge. Subtracts from `out` (in place) how
+        far (metres, in the face plane, along each point's own edge coordinate) that contour lies
+        beyond the front face's own edge. The back edge is carried along the ray onto the face
+        plane, so nothing is intersected at grazing incidence."""
+        rt = r[tb_idx]
+        dv_t, dh_t, dn_t = rt @ axes[0], rt @ axes[1], rt @ axes[2]
+        b_t = b[tb_idx]
+        shift_t = np.zeros(len(tb_idx))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for k, on in zip(contour_sides, lr_on):
+                sk = sign[k]
+                ro = r[on]
+                ext = np.maximum(sk * s * (ro @ axes[1]) / (ro @ axes[2]), 0.0)  # side face k's width
+                out[on] -= sk * np.where(np.isfinite(ext), ext, 0.0)
+                ext_t = np.maximum(sk * s * dh_t / dn_t, 0.0)
+                u = np.clip(sk * b_t - s / 2.0, 0.0, ext_t)  # how far beyond the front face, over side face k
+                step = u * dv_t / (sk * dh_t)
+                shift_t = np.where((u > 0) & np.isfinite(step), step, shift_t)
+        out[tb_idx] -= shift_t
 
     def pixel_weights(x):
         """1 / (metres per pixel) across each edge at pose x; 0 where a pixel says nothing."""
@@ -466,54 +533,23 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     if np.count_nonzero(weight[sid < 4]) < 8:
         return FailedEstimate("exact", "too few edge points with a usable pixel scale")
 
-    # Sides where the silhouette shows no side face: a pose that would show one there is penalised.
-    gaps = np.asarray(meas.side_gaps_px, dtype=np.float64)
-    no_side = [k for k in (0, 1) if meas.back_sides_px[k] is None and np.isfinite(gaps[k])
-               and gaps[k] <= NO_SIDE_FACE_GAP_PX and np.count_nonzero(sid == k) >= 3]
-    allowed = np.array([max(gaps[k], 0.0) + SIDE_WIDTH_SLACK_PX for k in no_side])
-
-    # up to 16 points per such side (their median rate is all that is used), with their neighbours
-    # half a pixel away, in one array: [points; neighbours]
-    pick = [np.flatnonzero(sid == k)[:: max(np.count_nonzero(sid == k) // 16, 1)][:16] for k in no_side]
-    if no_side:
-        idx = np.concatenate(pick)
-        w_p, w_d = np.r_[p[idx], p2[idx]], np.r_[d[idx], d2[idx]]
-        w_sign = np.tile(sign[sid[idx]], 2)
-        outward = np.where(sid[idx] == 1, 1.0, -1.0)  # image outward: −u left, +u right
-
-    def side_widths(c, axes, s):
-        """Image width (px) each side face in `no_side` would show at this pose (0 when hidden): the
-        side plane's normal coordinate w falls from 0 at the front edge to −s at the back edge;
-        dw per pixel outward comes from the rays half a pixel apart."""
-        w = _side_plane_w(w_p, w_d, c, axes, w_sign, s)
-        rate = (w[len(idx):] - w[: len(idx)]) / 0.5 * outward
-        out = np.zeros(len(no_side))
-        for j, k in enumerate(no_side):
-            r = rate[sid[idx] == k]
-            r = r[np.isfinite(r)]
-            med = float(np.median(r)) if len(r) else 0.0
-            out[j] = s / -med if med < 0 else 0.0
-        return out
-
-    penalised = False  # the side-width rows are added only once a fit needs them (they cost time)
-
-    def excess_width(x):
-        rot, c, s = unpack(x)
-        return side_widths(c, _square_axes(rot, base), s) - allowed
-
     def resid(x):
         rot, c, s = unpack(x)
         axes = _square_axes(rot, base)
         r = coords(p, d, c, axes, s) * weight
         r = np.where(np.isfinite(r), r, 0.0)
-        if penalised:
-            r = np.concatenate([r, np.maximum(side_widths(c, axes, s) - allowed, 0.0) / SIDE_WIDTH_SIGMA_PX])
+        if len(hid_idx):  # the image width (px) of a side face that must stay hidden, beyond its allowance
+            rh = d[hid_idx]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ext = np.maximum(sign[sid[hid_idx]] * s * (rh @ axes[1]) / (rh @ axes[2]), 0.0) * weight[hid_idx]
+            excess = np.where(np.isfinite(ext), np.maximum(ext - hid_allowed, 0.0), 0.0)
+            r = np.concatenate([r, excess / SIDE_WIDTH_SIGMA_PX])
         return r
 
     def covariance(j, r, n_params):
         # Sandwich covariance with Σ = σ²·I + edge_bias_px²·(ones within each side): a common offset
         # of a whole side is not averaged away by its many points.
-        n = len(sid)  # rows past the edge points: the side-width penalties (unit σ by construction)
+        n = len(sid)  # rows past the edge points: the hidden-side penalties (unit σ by construction)
         je, jp = j[:n], j[n:]
         sigma2 = float(r[:n] @ r[:n]) / max(n - n_params, 1)  # point scatter (pixels²)
         jtj_inv = np.linalg.pinv(je.T @ je + jp.T @ jp)
@@ -540,7 +576,17 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
                     x = np.zeros(7)
                     x[upright] = y
                     return resid(x)
-                sol = least_squares(fun, x0[upright], bounds=([-lim] + [-np.inf] * 4, [lim] + [np.inf] * 4),
+                y0 = x0[upright]
+                if len(starts) > 1 and contour_sides:
+                    # ddar read the contour as the face, so its centre and size suit no turn that shows
+                    # a merged side face: place the face at this start's turn first, so that each start
+                    # explores its turn rather than sliding back to ddar's
+                    def at_turn(z, turn=y0[0]):
+                        return fun(np.r_[turn, z])
+                    y0 = np.r_[y0[0], least_squares(at_turn, y0[1:], bounds=([-np.inf] * 3 + [-LOG_SIZE_RANGE],
+                                                                             [np.inf] * 3 + [LOG_SIZE_RANGE]),
+                                                    **dict(opts, max_nfev=PLACE_NFEV)).x]
+                sol = least_squares(fun, y0, bounds=([-lim] + [-np.inf] * 4, [lim] + [np.inf] * 4),
                                     **dict(opts, max_nfev=max_nfev))
                 x = np.zeros(7)
                 x[upright] = sol.x
@@ -552,7 +598,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         """Solve, re-measure the pixel scales at the solution, and solve once more from there."""
         nonlocal weight
         # Several starts: a few iterations each pick the basin, then only the best one is finished.
-        best = solve(free, starts, max_nfev=25 if len(starts) > 1 else 300)
+        best = solve(free, starts, max_nfev=(15 if contour_sides else 25) if len(starts) > 1 else 300)
         if best is None:
             return None
         if len(starts) > 1:
@@ -564,12 +610,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     # XSlit frame (one looking at the mirror axis from the side), so the turn starts from several values.
     turns = np.deg2rad([0.0, -15.0, 15.0, -30.0, 30.0, -45.0, 45.0])
     starts = [np.r_[t, np.zeros(6)] for t in turns]
-    weight0 = weight
     stage1 = refined(False, starts)
-    if no_side and (stage1 is None or np.any(excess_width(stage1[0]) > 0)):
-        # the best fit shows a side face where the silhouette shows none: fit again, ruling that out
-        penalised, weight = True, weight0
-        stage1 = refined(False, starts)
     if stage1 is None:
         return FailedEstimate("exact", "least squares did not converge from any starting turn")
     x_best, sol1 = stage1
@@ -589,8 +630,13 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         else:
             weight = weight_upright
     rot, c, s = unpack(x_best)
+    if not (np.all(np.isfinite(x_best)) and np.all(np.isfinite(c))):
+        return FailedEstimate("exact", "least squares diverged")
     normal = _square_axes(rot, base)[2]
     r = resid(x_best)[:len(sid)]  # the edge points' misfit
+    rms = float(np.sqrt(np.mean(r ** 2)))
+    if rms > MAX_EDGE_MISFIT_PX:
+        return FailedEstimate("exact", f"the edges do not fit one square face (rms misfit {rms:.2f} px)")
 
     # Propagate to the centre, size and z numerically.
     def derived(x):
@@ -609,7 +655,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     std = {"z": float(sd[4]), "size": float(sd[3]), "center": float(np.sqrt(np.sum(sd[:3] ** 2)))}
     return CubeEstimate(method="exact", center=f0[:3], size=float(s), z=float(f0[4]), front_face_center=c,
                         normal=normal, aspect_ratio=start.aspect_ratio, std=std,
-                        xslit=start.xslit, rms_residual=float(np.sqrt(np.mean(r ** 2))))
+                        xslit=start.xslit, rms_residual=rms)
 
 
 def _prepare(rays: RayFunction, meas: FaceMeasurement, method: str, seed: int):

@@ -1369,8 +1369,9 @@ def silhouette(
     lit, and the back edge tells how far the cube is turned. `channels` as in `face_outline`. A side
     whose points scatter about their fitted line by more than `max_scatter_px` (robust σ) is not an
     edge but noise or compression artefacts along the blob's border, and is dropped (its gap is
-    still reported: it says a side face shows). A gap of about 0 says no side face shows: a turn that
-    would show one is ruled out (`depth.estimate` uses it so).
+    still reported: it says a side face shows). A gap of about 0 says no distinct side face shows:
+    none is seen, or one lit like the front face merges with it (`depth.estimate` fits such a side
+    as the cube's outer contour).
     """
     image = _check_image(image)
     h, w = image.shape[:2]

@@ -34,11 +34,14 @@ class MirrorRig:
         rot = Rotation.from_euler("y", yaw).as_matrix() @ Rotation.from_euler("z", np.deg2rad(roll_deg)).as_matrix()
         return Cube(size, c, rot)
 
-    def measure(self, cube, n=50, noise_px=0.0, seed=0, gaps=False, side_offset_px=0.0):
+    def measure(self, cube, n=50, noise_px=0.0, seed=0, gaps=False, side_offset_px=0.0, merged=False):
         """Exact (or noisy) FaceMeasurement of the cube's front face, with the silhouette of its back
         vertical edges where a side face shows (more than 0.75 px beyond the front face). `gaps`: also
         the silhouette's gaps to the front face (0 where the side face is hidden). `side_offset_px`:
-        σ of a common outward offset added to each whole front side (as images give)."""
+        σ of a common outward offset added to each whole front side (as images give). `merged`: side
+        faces as bright as the front face, so what is measured is the cube's outer contour: a seen
+        side face's back edge instead of the front face's side (gap 0, no back side), and the top and
+        bottom sides running on over that side face's top and bottom edges."""
         _, corners, centre = cube.front_face(self.mirror)
         n_out = (centre - cube.center) / np.linalg.norm(centre - cube.center)
         t = np.linspace(0.08, 0.92, n)[:, None]
@@ -59,18 +62,28 @@ class MirrorRig:
         lr, tb = pairs[int(np.argmax(du))], pairs[1 - int(np.argmax(du))]
         il, ir = sorted(lr, key=lambda i: px[i][:, 0].mean())
         top, bottom = sorted([px[tb[0]], px[tb[1]]], key=lambda p: p[:, 1].mean())
-        back_sides, side_gaps = [], []
+        back_sides, side_gaps, left_right = [], [], {}
         for i, sign in ((il, -1.0), (ir, 1.0)):
             gap = sign * (back[i][:, 0] - px[i][:, 0])
+            left_right[i] = px[i]
+            if merged and np.median(gap) > 0:  # the side face shows, merged: the contour is its back edge
+                left_right[i] = back[i]
+                ends = corners[[i, (i + 1) % 4]]
+                ends_px = reflection_pixels(self.camera, self.mirror, ends)[0]
+                upper, lower = ends[np.argmin(ends_px[:, 1])], ends[np.argmax(ends_px[:, 1])]
+                t2 = np.linspace(0.05, 1.0, n // 2)[:, None] * cube.size
+                top = np.concatenate([top, reflection_pixels(self.camera, self.mirror, upper - t2 * n_out)[0]])
+                bottom = np.concatenate([bottom, reflection_pixels(self.camera, self.mirror, lower - t2 * n_out)[0]])
+                gap = np.zeros(1)
             back_sides.append(back[i] if np.median(gap) > 0.75 else None)
-            side_gaps.append(max(float(np.median(gap)), 0.0) if gaps else float("nan"))
+            side_gaps.append(max(float(np.median(gap)), 0.0) if gaps or merged else float("nan"))
         outline = np.concatenate(px)
         lo, hi = np.floor(outline.min(0)), np.ceil(outline.max(0))
         gu, gv = np.meshgrid(np.arange(lo[0], hi[0] + 1), np.arange(lo[1], hi[1] + 1))
         grid = np.column_stack([gu.ravel(), gv.ravel()])
         inside = Path(outline).contains_points(grid)
         corners_px = reflection_pixels(self.camera, self.mirror, corners)[0]
-        return FaceMeasurement((px[il], px[ir], top, bottom), corners_px, grid[inside], max(noise_px, 0.0),
+        return FaceMeasurement((left_right[il], left_right[ir], top, bottom), corners_px, grid[inside], max(noise_px, 0.0),
                                back_sides_px=tuple(back_sides), side_gaps_px=tuple(side_gaps))
 
     def depth(self, cube):
