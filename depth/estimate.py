@@ -60,6 +60,10 @@ MAX_EDGE_MISFIT_PX = 1.0
 pixels): sub-pixel edges that a square cannot explain are not one cube's face (an outline run onto a
 neighbouring face, a wrong corner). Good fits are at 0.05–0.1 px."""
 
+MERGED_TOP_PX = 1.0
+"""A top or bottom face that the fitted pose shows taller than this (px) where the image shows no
+distinct face beside that side is taken as merged with the front face, and `exact` fits again."""
+
 SIDE_WIDTH_SLACK_PX = 0.5
 """Where the other side shows a distinct side face, `exact` penalises a pose whose side face on this
 side would image wider than the measured silhouette gap plus this (that face is hidden)."""
@@ -109,10 +113,12 @@ class FaceMeasurement:
     back_sides_px : (left, right), each (M, 2) float64 or None: silhouette points of the cube's back
         vertical edge where a side face shows beside the front face (`depth.measure.silhouette_sides`)
     edge_bias_px : float, σ of a common offset of a whole side (`EDGE_BIAS_PX`)
-    side_gaps_px : (left, right) float, how far (px) the cube's silhouette lies outward of the front
-        face's side (`depth.measure.Silhouette.gaps_px`); NaN where unknown. A gap of about 0 means no
+    side_gaps_px : (left, right[, top, bottom]) float, how far (px) the cube's silhouette lies outward
+        of each side of the front face (`depth.measure.Silhouette.gaps_px`); NaN where unknown. A gap of about 0 means no
         distinct side face shows there: ``exact`` then reads that side as the cube's outer contour
         (or, opposite a distinct side face, as a side whose face is hidden).
+    strip_px : (4,) float, width of a thin strip of another face found beside each side
+        (`depth.measure.FaceOutline.strip_px`): such a face is distinct, not merged.
     """
 
     sides_px: tuple
@@ -122,6 +128,7 @@ class FaceMeasurement:
     back_sides_px: tuple = (None, None)
     edge_bias_px: float = EDGE_BIAS_PX
     side_gaps_px: tuple = (float("nan"), float("nan"))
+    strip_px: tuple = (0.0, 0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -413,6 +420,14 @@ def _face_coords(origins, directions, c, axes):
     return q @ axes[0], q @ axes[1]
 
 
+# The cube in its front face's frame, in units of the edge length: vertices (a, b, w) with a along
+# the face's vertical, b its horizontal, w its normal (0 on the front face, −1 on the back).
+_VERTS = np.array([(a, b, w) for w in (0.0, -1.0) for a in (-0.5, 0.5) for b in (-0.5, 0.5)])
+_FRONT = (0, 1, 3, 2)  # indices into _VERTS
+_FACES = {False: (0, 2, 6, 4), True: (1, 3, 7, 5)}  # the side faces at b < 0 and at b > 0
+_TOPS = {False: (0, 1, 5, 4), True: (2, 3, 7, 6)}  # the top/bottom faces at a < 0 and at a > 0
+
+
 def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local: LocalXSlit,
            cube_size: float | None, up=None) -> CubeEstimate | FailedEstimate:
     """Non-central PnP of the square face (and its back vertical edges) from exact per-pixel rays.
@@ -456,7 +471,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     # Left/right sides beside which the silhouette shows no distinct side face: either none is seen
     # or it is seen but as bright as the front face, merged with it. Both are fitted as the cube's
     # outer contour (`contour_shift`).
-    gaps = np.asarray(meas.side_gaps_px, dtype=np.float64)
+    gaps = np.r_[np.asarray(meas.side_gaps_px, dtype=np.float64), np.full(2, np.nan)][:4]
     # Where the other side shows a distinct side face, the cube is turned that way and this side's
     # face is hidden: its edge is the front face's own.
     no_back = all(sp is None for sp in meas.back_sides_px)
@@ -484,9 +499,25 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         return x[:3], c, s
 
     back_idx = np.flatnonzero(is_back)
-    # the points a contour can move: left/right points of contour sides, and top/bottom points
-    lr_on = [np.flatnonzero(sid == k) for k in contour_sides]
-    tb_idx = np.flatnonzero(is_tb) if contour_sides else np.zeros(0, dtype=int)
+    # The faces merged with the front face: a side face beside each contour side (a hidden one adds
+    # nothing: it projects inside the front face). The measured outline is the boundary of their
+    # union; `contour` gives it.
+    merged = [(_FRONT, None, 0.0)] + [(_FACES[sign[k] > 0], 1, sign[k]) for k in contour_sides]
+    # A top or bottom side with no gap to the silhouette and no thin strip of another face beside
+    # it, on a cube with no distinct side face either: that face is hidden or merged (see `fit`).
+    tb_candidates = [k for k in (2, 3) if len(contour_sides) == 2 and np.isfinite(gaps[k])
+                     and gaps[k] <= NO_SIDE_FACE_GAP_PX and not meas.strip_px[k] > 0]
+    front_idx = np.flatnonzero(sid < 4)
+
+    def face_pairs(faces):
+        """Vertex pairs of the given faces (P, 2), and per pair its face's (frame axis, sign) for the
+        visibility test (axis −1: the front face, always seen)."""
+        pr = np.array([(f[i], f[j]) for f, _, _ in faces for i in range(4) for j in range(i + 1, 4)])
+        ax = np.repeat([-1 if a is None else a for _, a, _ in faces], 6)
+        sg = np.repeat([sg for _, _, sg in faces], 6)
+        return pr, ax, sg
+
+    pairs, pair_axis, pair_sign = face_pairs(merged)
 
     def coords(q, r, c, axes, s):
         """Per point: its measured coordinate minus where the model puts its edge (metres)."""
@@ -494,32 +525,38 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         out = np.where(is_lr, b, a) - sign[sid] * s / 2.0
         if len(back_idx):  # back edges: on the side plane at w = −s
             out[back_idx] = _side_plane_w(q[back_idx], r[back_idx], c, axes, sign[sid[back_idx]], s) + s
-        if contour_sides:
-            contour_shift(out, r, axes, s, b)
+        if len(merged) > 1:
+            out[front_idx] = contour(r[front_idx], axes, s, a[front_idx], b[front_idx], out[front_idx])
         return out
 
-    def contour_shift(out, r, axes, s, b):
-        """Where a side shows no distinct side face, its points lie on the cube's outer contour: the
-        outermost vertical edge (the back one when that side face is seen, merged with the front
-        face) and, over a seen side face, its top or bottom edge. Subtracts from `out` (in place) how
-        far (metres, in the face plane, along each point's own edge coordinate) that contour lies
-        beyond the front face's own edge. The back edge is carried along the ray onto the face
-        plane, so nothing is intersected at grazing incidence."""
-        rt = r[tb_idx]
-        dv_t, dh_t, dn_t = rt @ axes[0], rt @ axes[1], rt @ axes[2]
-        b_t = b[tb_idx]
-        shift_t = np.zeros(len(tb_idx))
+    def contour(r, axes, s, a, b, front):
+        """Residuals of front-side points against the outline of the front face united with the
+        faces merged with it. Each point's face is taken to image like its own neighbourhood: the
+        cube's vertices are carried along the point's ray onto the face plane, the union's extent
+        along the point's row (left/right) or column (top/bottom) is the largest crossing of a face's
+        vertex pair, and the residual is the point's coordinate minus that extent. A point beyond
+        the union's span keeps its front-edge residual."""
+        dn = r @ axes[2]
         with np.errstate(divide="ignore", invalid="ignore"):
-            for k, on in zip(contour_sides, lr_on):
-                sk = sign[k]
-                ro = r[on]
-                ext = np.maximum(sk * s * (ro @ axes[1]) / (ro @ axes[2]), 0.0)  # side face k's width
-                out[on] -= sk * np.where(np.isfinite(ext), ext, 0.0)
-                ext_t = np.maximum(sk * s * dh_t / dn_t, 0.0)
-                u = np.clip(sk * b_t - s / 2.0, 0.0, ext_t)  # how far beyond the front face, over side face k
-                step = u * dv_t / (sk * dh_t)
-                shift_t = np.where((u > 0) & np.isfinite(step), step, shift_t)
-        out[tb_idx] -= shift_t
+            shift = s * np.stack([r @ axes[0] / dn, r @ axes[1] / dn], axis=1)  # (N, 2): a back vertex's move
+        # a side/top face is seen where its back edge moves outward (σ·shift > 0); hidden faces image
+        # inside the others and are left out (one hidden behind a seen top face would poke out)
+        seen = np.where(pair_axis[None, :] < 0, True,
+                        pair_sign[None, :] * shift[:, np.maximum(pair_axis, 0)] > 0)  # (N, P)
+        va = _VERTS[None, :, 0] * s - _VERTS[None, :, 2] * shift[:, 0:1]  # (N, 8) projected a
+        vb = _VERTS[None, :, 1] * s - _VERTS[None, :, 2] * shift[:, 1:2]  # (N, 8) projected b
+        lr = sid[front_idx] < 2
+        along = np.where(lr, a, b)  # the line: a = a_p for left/right points, b = b_p for top/bottom
+        x = np.where(lr[:, None], va, vb)  # coordinate fixed by the line
+        y = np.where(lr[:, None], vb, va)  # coordinate measured
+        x0, x1, y0, y1 = x[:, pairs[:, 0]], x[:, pairs[:, 1]], y[:, pairs[:, 0]], y[:, pairs[:, 1]]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (along[:, None] - x0) / (x1 - x0)
+        sg = sign[sid[front_idx]][:, None]
+        cross = np.where(seen & np.isfinite(t) & (t >= 0) & (t <= 1), sg * (y0 + t * (y1 - y0)), -np.inf)
+        extent = cross.max(axis=1)
+        measured = np.where(lr, b, a)
+        return np.where(np.isfinite(extent), measured - sign[sid[front_idx]] * extent, front)
 
     def pixel_weights(x):
         """1 / (metres per pixel) across each edge at pose x; 0 where a pixel says nothing."""
@@ -577,7 +614,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
                     x[upright] = y
                     return resid(x)
                 y0 = x0[upright]
-                if len(starts) > 1 and contour_sides:
+                if len(starts) > 1 and len(merged) > 1:
                     # ddar read the contour as the face, so its centre and size suit no turn that shows
                     # a merged side face: place the face at this start's turn first, so that each start
                     # explores its turn rather than sliding back to ddar's
@@ -598,7 +635,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         """Solve, re-measure the pixel scales at the solution, and solve once more from there."""
         nonlocal weight
         # Several starts: a few iterations each pick the basin, then only the best one is finished.
-        best = solve(free, starts, max_nfev=(15 if contour_sides else 25) if len(starts) > 1 else 300)
+        best = solve(free, starts, max_nfev=(15 if len(merged) > 1 else 25) if len(starts) > 1 else 300)
         if best is None:
             return None
         if len(starts) > 1:
@@ -606,29 +643,56 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         weight = pixel_weights(best[0])
         return solve(free, [best[0]])
 
-    # Stage 1, upright. The ddar start can be tens of degrees off for a face turned from the local
-    # XSlit frame (one looking at the mirror axis from the side), so the turn starts from several values.
-    turns = np.deg2rad([0.0, -15.0, 15.0, -30.0, 30.0, -45.0, 45.0])
-    starts = [np.r_[t, np.zeros(6)] for t in turns]
-    stage1 = refined(False, starts)
-    if stage1 is None:
+    def fit():
+        """Stage 1 and (when needed) stage 2: (x, covariance) or None."""
+        nonlocal weight
+        # Stage 1, upright. The ddar start can be tens of degrees off for a face turned from the local
+        # XSlit frame (one looking at the mirror axis from the side), so the turn starts from several values.
+        turns = np.deg2rad([0.0, -15.0, 15.0, -30.0, 30.0, -45.0, 45.0])
+        stage1 = refined(False, [np.r_[t, np.zeros(6)] for t in turns])
+        if stage1 is None:
+            return None
+        x_best, sol1 = stage1
+        cov = np.zeros((7, 7))
+        cov[np.ix_(upright, upright)] = covariance(sol1.jac, sol1.fun, 5)
+        # Stage 2, any orientation, only when the upright face does not explain the edges (rms above
+        # UPRIGHT_MISFIT_PX, many times the sub-pixel edge scatter), kept only when it halves the misfit:
+        # a free tilt fitted to noise slides along a valley of tilt against depth.
+        rms1 = float(np.sqrt(np.mean(sol1.fun ** 2)))
+        if rms1 > UPRIGHT_MISFIT_PX:
+            weight_upright = weight
+            rolls = np.deg2rad([0.0, -20.0, 20.0, -40.0, 40.0])
+            starts = [np.r_[origin[:2], roll, origin[3:]] for origin in (x_best, np.zeros(7)) for roll in rolls]
+            stage2 = refined(True, starts)
+            if stage2 is not None and np.sqrt(np.mean(stage2[1].fun ** 2)) < 0.5 * rms1:
+                x_best, cov = stage2[0], covariance(stage2[1].jac, stage2[1].fun, 7)
+            else:
+                weight = weight_upright
+        return x_best, cov
+
+    weight_start = weight
+    result = fit()
+    if result is not None and tb_candidates:
+        # A top or bottom face that this pose shows more than a pixel tall where the image shows no
+        # distinct face beside that side: it is lit like the front face and merged with it (a sky
+        # with no sun lights every face alike). Fit again with it in the outline.
+        rot, c, s = unpack(result[0])
+        axes = _square_axes(rot, base)
+        heights = []
+        for k in tb_candidates:
+            m = sid == k
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ext = np.maximum(sign[k] * s * (d[m] @ axes[0]) / (d[m] @ axes[2]), 0.0) * weight[m]
+            heights.append(float(np.median(ext[np.isfinite(ext)])) if np.isfinite(ext).any() else 0.0)
+        tops = [k for k, hk in zip(tb_candidates, heights) if hk > MERGED_TOP_PX]
+        if tops:
+            merged = merged + [(_TOPS[sign[k] > 0], 0, sign[k]) for k in tops]
+            pairs, pair_axis, pair_sign = face_pairs(merged)
+            weight = weight_start
+            result = fit() or result
+    if result is None:
         return FailedEstimate("exact", "least squares did not converge from any starting turn")
-    x_best, sol1 = stage1
-    cov = np.zeros((7, 7))
-    cov[np.ix_(upright, upright)] = covariance(sol1.jac, sol1.fun, 5)
-    # Stage 2, any orientation, only when the upright face does not explain the edges (rms above
-    # UPRIGHT_MISFIT_PX, many times the sub-pixel edge scatter), kept only when it halves the misfit:
-    # a free tilt fitted to noise slides along a valley of tilt against depth.
-    rms1 = float(np.sqrt(np.mean(sol1.fun ** 2)))
-    if rms1 > UPRIGHT_MISFIT_PX:
-        weight_upright = weight
-        rolls = np.deg2rad([0.0, -20.0, 20.0, -40.0, 40.0])
-        starts = [np.r_[origin[:2], roll, origin[3:]] for origin in (x_best, np.zeros(7)) for roll in rolls]
-        stage2 = refined(True, starts)
-        if stage2 is not None and np.sqrt(np.mean(stage2[1].fun ** 2)) < 0.5 * rms1:
-            x_best, cov = stage2[0], covariance(stage2[1].jac, stage2[1].fun, 7)
-        else:
-            weight = weight_upright
+    x_best, cov = result
     rot, c, s = unpack(x_best)
     if not (np.all(np.isfinite(x_best)) and np.all(np.isfinite(c))):
         return FailedEstimate("exact", "least squares diverged")

@@ -1332,8 +1332,9 @@ class Silhouette:
 
     sides : (left, right), each (M, 2) float64 sub-pixel points of the back vertical edge where a
         side face shows beside the front face, else None
-    gaps_px : (2,) float64, median distance (px) from the front face's left/right side outward to
-        the silhouette; about 0 where no side face shows, NaN where it could not be measured
+    gaps_px : (4,) float64, median distance (px) from the front face's left, right, top and bottom
+        side outward to the silhouette; about 0 where no other face shows (or one shows, merged with
+        the front face), NaN where it could not be measured
     """
 
     sides: tuple
@@ -1412,5 +1413,44 @@ def silhouette(
         scatter = 1.4826 * np.median(np.abs(res - np.median(res)))
         gaps[side] = float(np.median(gap))
         out.append(pts if gaps[side] > min_gap_px and scatter <= max_scatter_px else None)
-    return Silhouette(tuple(out), gaps)
+    return Silhouette(tuple(out), np.r_[gaps, _top_bottom_gaps(image, blob_mask, outline, margin_frac,
+                                                                profile_half_width_px, min_contrast,
+                                                                min_points, channels)])
+
+
+def _top_bottom_gaps(image, blob_mask, outline, margin_frac, half_width, min_contrast, min_points, channels):
+    """Median distance (px) from the front face's top and bottom sides outward to the blob's
+    boundary, along the face's columns (less `margin_frac` of its width at each end): (2,), NaN
+    where not measurable."""
+    h, w = image.shape[:2]
+    tl, tr, br, bl = outline.corners_px
+    left, right = max(tl[0], bl[0]), min(tr[0], br[0])
+    span = right - left
+    cols = np.arange(np.ceil(left + margin_frac * span), np.floor(right - margin_frac * span) + 1).astype(int)
+    cols = cols[(cols >= 0) & (cols < w)]
+    gaps = np.full(2, np.nan)
+    if len(cols) < 3:
+        return gaps
+    for k, sign in ((0, -1.0), (1, 1.0)):
+        sub = blob_mask[:, cols]
+        has = sub.any(axis=0)
+        rows = np.where(sign < 0, np.argmax(sub, axis=0), h - 1 - np.argmax(sub[::-1], axis=0))
+        c, r = cols[has].astype(np.float64), rows[has].astype(np.float64)
+        start = np.stack([c, r + 0.5 * sign], axis=1)  # the pixel boundary, outward
+        inside = (start[:, 1] - half_width >= 0) & (start[:, 1] + half_width <= h - 1)
+        start = start[inside]
+        if len(start) < min(min_points, 3):
+            continue
+        normal = np.tile([0.0, sign], (len(start), 1))
+        x0, y0 = int(max(start[:, 0].min() - 1, 0)), int(max(start[:, 1].min() - 4, 0))
+        x1, y1 = int(min(start[:, 0].max() + 2, w)), int(min(start[:, 1].max() + 5, h))
+        linear = _edge_image(image[y0:y1, x0:x1], channels)
+        e, contrast = _edge_offsets(linear, start - [x0, y0], normal, half_width, min_contrast)
+        good = (contrast >= min_contrast) & (np.abs(e) <= half_width - 0.5)
+        if good.sum() < 3:
+            continue
+        pts = start[good] + e[good, None] * normal[good]
+        qa, qb, qc = outline.quadratics[k]
+        gaps[k] = float(np.median(sign * (pts[:, 1] - ((qa * pts[:, 0] + qb) * pts[:, 0] + qc))))
+    return gaps
 

@@ -165,7 +165,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         sil = silhouette(img, det.mask, outline, channels=channels)
         meas = FaceMeasurement(tuple(outline.sides), outline.corners_px,
                                np.column_stack([xs, ys]).astype(np.float64), outline.edge_noise_px,
-                               back_sides_px=sil.sides, side_gaps_px=tuple(sil.gaps_px),
+                               back_sides_px=sil.sides, side_gaps_px=tuple(sil.gaps_px), strip_px=tuple(outline.strip_px),
                                edge_bias_px=EDGE_BIAS_PX_COMPRESSED if compressed
                                else EDGE_BIAS_PX_BLURRED if outline.blurred else EDGE_BIAS_PX)
         measured.append((meas, bbox, outline))
