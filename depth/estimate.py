@@ -467,10 +467,9 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     scale = max(s0, 1e-6)
     is_lr = sid < 2
     is_back = sid >= 4
-    is_tb = (sid == 2) | (sid == 3)
     # Left/right sides beside which the silhouette shows no distinct side face: either none is seen
     # or it is seen but as bright as the front face, merged with it. Both are fitted as the cube's
-    # outer contour (`contour_shift`).
+    # outer contour (`contour`).
     gaps = np.r_[np.asarray(meas.side_gaps_px, dtype=np.float64), np.full(2, np.nan)][:4]
     # Where the other side shows a distinct side face, the cube is turned that way and this side's
     # face is hidden: its edge is the front face's own.
@@ -499,9 +498,8 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         return x[:3], c, s
 
     back_idx = np.flatnonzero(is_back)
-    # The faces merged with the front face: a side face beside each contour side (a hidden one adds
-    # nothing: it projects inside the front face). The measured outline is the boundary of their
-    # union; `contour` gives it.
+    # The faces merged with the front face: a side face beside each contour side (counted only where
+    # seen). The measured outline is the boundary of their union; `contour` gives it.
     merged = [(_FRONT, None, 0.0)] + [(_FACES[sign[k] > 0], 1, sign[k]) for k in contour_sides]
     # A top or bottom side with no gap to the silhouette and no thin strip of another face beside
     # it, on a cube with no distinct side face either: that face is hidden or merged (see `fit`).

@@ -93,3 +93,46 @@ class MirrorRig:
 @pytest.fixture(scope="session")
 def rig():
     return MirrorRig()
+
+
+def _ray_box_hit(points, directions, cube) -> np.ndarray:
+    """(N,) bool: the rays meet the cube (slab test in the cube's frame)."""
+    o = (points - cube.center) @ cube.rotation
+    d = directions @ cube.rotation
+    half = cube.size / 2.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1, t2 = (-half - o) / d, (half - o) / d
+    near = np.nanmax(np.minimum(t1, t2), axis=1)
+    far = np.nanmin(np.maximum(t1, t2), axis=1)
+    return (far >= near) & (far > 0)
+
+
+def silhouette_measurement(rig, cube, n=40):
+    """FaceMeasurement of a cube whose faces all look alike (lit by a uniform sky): its outline is the
+    cube's whole silhouette, found by bisecting, along rows (left/right) and columns (top/bottom)
+    through the front face's middle 80 %, where the exact reflected rays stop meeting the cube. No
+    edge of the model is used: only ray–box hits."""
+    _, corners, _ = cube.front_face(rig.mirror)
+    cpx = reflection_pixels(rig.camera, rig.mirror, corners)[0]
+    lo, hi = cpx.min(axis=0), cpx.max(axis=0)
+    mid, span = (lo + hi) / 2.0, hi - lo
+    sides = []
+    for axis, sign in ((0, -1.0), (0, 1.0), (1, -1.0), (1, 1.0)):  # left, right, top, bottom
+        other = 1 - axis
+        t = mid[other] + np.linspace(-0.4, 0.4, n) * span[other]
+        inside, outside = np.full(n, mid[axis]), np.full(n, mid[axis] + sign * 3.0 * span.max())
+        for _ in range(50):
+            half = (inside + outside) / 2.0
+            px = np.empty((n, 2))
+            px[:, axis], px[:, other] = half, t
+            hit = _ray_box_hit(*rig.rays(px), cube)
+            inside, outside = np.where(hit, half, inside), np.where(hit, outside, half)
+        px = np.empty((n, 2))
+        px[:, axis], px[:, other] = (inside + outside) / 2.0, t
+        sides.append(px)
+    outline = np.concatenate([sides[0], sides[3], sides[1][::-1], sides[2][::-1]])
+    gu, gv = np.meshgrid(np.arange(np.floor(lo[0]), np.ceil(hi[0]) + 1), np.arange(np.floor(lo[1]), np.ceil(hi[1]) + 1))
+    grid = np.column_stack([gu.ravel(), gv.ravel()])
+    order = np.argsort(np.arctan2(outline[:, 1] - mid[1], outline[:, 0] - mid[0]))
+    face = grid[Path(outline[order]).contains_points(grid)]
+    return FaceMeasurement(tuple(sides), cpx, face, 0.0, side_gaps_px=(0.0, 0.0, 0.0, 0.0))

@@ -175,3 +175,19 @@ def test_exact_refuses_edges_that_no_square_explains(rig):
     est = estimate_face(rig.rays, dataclasses.replace(meas, sides_px=tuple(sides)), up=rig.mirror.axis)
     assert not est and "do not fit one square face" in est.reason
     assert estimate_face(rig.rays, meas, up=rig.mirror.axis)  # the true outline is not refused
+
+
+@pytest.mark.parametrize("height, yaw", [(-0.05, 0.0), (-0.05, 15.0), (0.06, -15.0)])
+def test_exact_recovers_a_uniformly_lit_cube_from_its_silhouette(rig, height, yaw):
+    """Every face lit alike (a sky, no sun): the image gives only the cube's silhouette, top or bottom
+    face included. The silhouette comes from ray–box hits, not from the estimator's model; read as
+    merged faces it gives the cube back; read as the front face alone it does not."""
+    from conftest import silhouette_measurement
+    cube = rig.cube(0.5, 8.0, height=height, yaw_deg=yaw)
+    meas = silhouette_measurement(rig, cube)
+    est = estimate_face(rig.rays, meas, method="exact", up=rig.mirror.axis)
+    assert est and centre_error(rig, est, cube) < 1e-3
+    assert est.size == pytest.approx(cube.size, rel=1e-3)
+    naive = estimate_face(rig.rays, dataclasses.replace(meas, side_gaps_px=(np.nan,) * 4),
+                          method="exact", up=rig.mirror.axis)
+    assert not naive or centre_error(rig, naive, cube) > 0.02
