@@ -88,18 +88,18 @@ darkening the edge, anti-aliasing); treating the points as independent would mak
 `python -m bench edges` measures the per-side offsets on held-out renders: on 16-spp renders the
 typical side is off by 0.02 px (robust σ), but 10 % of sides by more than 0.1 px (clean) or 0.2 px
 (noise). The value, from earlier 4-spp renders (robust σ 0.14 px), is kept because it covers that
-tail: on the reconstruct bench 83 % of clean-image depth errors fall within 1 σ, 93 % within 2 σ."""
+tail: on the reconstruct bench 93 % of clean-image depth errors fall within 1 σ, 94 % within 2 σ."""
 
 EDGE_BIAS_PX_COMPRESSED = 0.18
 """The same for JPEG images (`FaceMeasurement.edge_bias_px`, which `depth.reconstruct` sets). Held-out
-JPEG sides: robust σ 0.03 px, 90th percentile 0.59 px; bench coverage 53 / 63 % within 1 / 2 σ."""
+JPEG sides: robust σ 0.03 px, 90th percentile 0.59 px; bench coverage 58 / 73 % within 1 / 2 σ."""
 
 EDGE_BIAS_PX_BLURRED = 0.28
 """The same for faces whose edges are blurred (`depth.measure.FaceOutline.blurred`). Blur applied
 to the sRGB values also moves edges outward in linear light (+0.14 px on the held-out renders, robust
 spread 0.18 px); whether an image was blurred before or after its encoding cannot be told, so that
 offset is not corrected but covered (√(0.146² + 0.236²) as first measured; bench blur coverage
-69 / 84 % within 1 / 2 σ)."""
+78 / 91 % within 1 / 2 σ)."""
 
 
 @dataclass(frozen=True)
