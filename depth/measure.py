@@ -1387,23 +1387,7 @@ def silhouette(
         if len(rows) < min_points:
             out.append(None)
             continue
-        sub = blob_mask[rows]
-        has = sub.any(axis=1)
-        cols = np.where(sign < 0, np.argmax(sub, axis=1), w - 1 - np.argmax(sub[:, ::-1], axis=1))
-        r, c = rows[has], cols[has].astype(np.float64)
-        start = np.stack([c + 0.5 * sign, r.astype(np.float64)], axis=1)  # the pixel boundary, outward
-        inside = (start[:, 0] - profile_half_width_px >= 0) & (start[:, 0] + profile_half_width_px <= w - 1)
-        start = start[inside]
-        if len(start) < min_points:
-            out.append(None)
-            continue
-        normal = np.tile([sign, 0.0], (len(start), 1))
-        x0, y0 = int(max(start[:, 0].min() - 4, 0)), int(max(start[:, 1].min() - 1, 0))
-        x1, y1 = int(min(start[:, 0].max() + 5, w)), int(min(start[:, 1].max() + 2, h))
-        linear = _edge_image(image[y0:y1, x0:x1], channels)
-        e, contrast = _edge_offsets(linear, start - [x0, y0], normal, profile_half_width_px, min_contrast)
-        good = (contrast >= min_contrast) & (np.abs(e) <= profile_half_width_px - 0.5)
-        pts = start[good] + e[good, None] * normal[good]
+        pts = _blob_boundary(image, blob_mask, rows, 0, sign, profile_half_width_px, min_contrast, channels)
         if len(pts) < min_points:
             out.append(None)
             continue
@@ -1418,11 +1402,38 @@ def silhouette(
                                                                 min_points, channels)])
 
 
+def _blob_boundary(image, blob_mask, lines, axis, sign, half_width, min_contrast, channels) -> np.ndarray:
+    """Sub-pixel points (M, 2) where the blob meets the background, one per row (`axis` 0: along u,
+    outward `sign`) or per column (`axis` 1: along v) of `lines`, located like `face_outline`'s edge
+    points from the outermost blob pixel's boundary; only points with a measurable edge."""
+    h, w = image.shape[:2]
+    sub = blob_mask[lines] if axis == 0 else blob_mask[:, lines].T
+    n = sub.shape[1]
+    has = sub.any(axis=1)
+    outer = np.where(sign < 0, np.argmax(sub, axis=1), n - 1 - np.argmax(sub[:, ::-1], axis=1))
+    start = np.zeros((int(has.sum()), 2))
+    start[:, axis] = outer[has] + 0.5 * sign  # the pixel boundary, outward
+    start[:, 1 - axis] = lines[has]
+    size = (w, h)[axis]
+    start = start[(start[:, axis] - half_width >= 0) & (start[:, axis] + half_width <= size - 1)]
+    if not len(start):
+        return start
+    normal = np.zeros_like(start)
+    normal[:, axis] = sign
+    lo = np.array([4, 4]) * (np.arange(2) == axis) + (np.arange(2) != axis)  # reach: 4 px across, 1 along
+    x0, y0 = np.maximum(np.floor(start.min(axis=0) - lo).astype(int), 0)
+    x1, y1 = np.minimum(np.floor(start.max(axis=0) + lo + 1).astype(int), (w, h))
+    linear = _edge_image(image[y0:y1, x0:x1], channels)
+    e, contrast = _edge_offsets(linear, start - [x0, y0], normal, half_width, min_contrast)
+    good = (contrast >= min_contrast) & (np.abs(e) <= half_width - 0.5)
+    return start[good] + e[good, None] * normal[good]
+
+
 def _top_bottom_gaps(image, blob_mask, outline, margin_frac, half_width, min_contrast, min_points, channels):
     """Median distance (px) from the front face's top and bottom sides outward to the blob's
     boundary, along the face's columns (less `margin_frac` of its width at each end): (2,), NaN
     where not measurable."""
-    h, w = image.shape[:2]
+    w = image.shape[1]
     tl, tr, br, bl = outline.corners_px
     left, right = max(tl[0], bl[0]), min(tr[0], br[0])
     span = right - left
@@ -1431,6 +1442,13 @@ def _top_bottom_gaps(image, blob_mask, outline, margin_frac, half_width, min_con
     gaps = np.full(2, np.nan)
     if len(cols) < 3:
         return gaps
+    for k, sign in ((0, -1.0), (1, 1.0)):
+        pts = _blob_boundary(image, blob_mask, cols, 1, sign, half_width, min_contrast, channels)
+        if len(pts) < 3:
+            continue
+        qa, qb, qc = outline.quadratics[k]
+        gaps[k] = float(np.median(sign * (pts[:, 1] - ((qa * pts[:, 0] + qb) * pts[:, 0] + qc))))
+    return gaps
     for k, sign in ((0, -1.0), (1, 1.0)):
         sub = blob_mask[:, cols]
         has = sub.any(axis=0)
