@@ -95,11 +95,12 @@ EDGE_BIAS_PX_COMPRESSED = 0.18
 JPEG sides: robust σ 0.03 px, 90th percentile 0.59 px; bench coverage 58 / 73 % within 1 / 2 σ."""
 
 EDGE_BIAS_PX_BLURRED = 0.28
-"""The same for faces whose edges are blurred (`depth.measure.FaceOutline.blurred`). Blur applied
-to the sRGB values also moves edges outward in linear light (+0.14 px on the held-out renders, robust
-spread 0.18 px); whether an image was blurred before or after its encoding cannot be told, so that
-offset is not corrected but covered (√(0.146² + 0.236²) as first measured; bench blur coverage
-78 / 91 % within 1 / 2 σ)."""
+"""The same for faces whose edges are blurred (`depth.measure.FaceOutline.blurred`). A blur of the
+stored sRGB values read as optical blur moves edges toward the brighter side (+0.16 px, robust spread
+0.16 px on the held-out blurred renders, `python -m bench edges`); `depth.reconstruct` now tells the two
+blurs apart (`depth.measure.blur_domain_verdict`) and then measures them at +0.02 ± 0.06 px. The
+verdict leaves weak evidence to the linear reading, so the constant (√(0.146² + 0.236²) as first
+measured) still covers a misread blur: bench blur coverage 82 / 89 % within 1 / 2 σ."""
 
 
 @dataclass(frozen=True)
