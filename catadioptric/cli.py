@@ -196,7 +196,8 @@ def _cmd_reconstruct(args) -> int:
         raise CatadioptricError(f"{args.overlay}: --overlay: expected an output file name ending in .png")
     with Progress("measuring cubes") as bar:
         setup, setup_path, image, rec = rc.run_reconstruction(args.image, args.setup, args.method,
-                                                              args.cube_size, progress=bar)
+                                                              args.cube_size, progress=bar,
+                                                              blur_domain=args.blur_domain)
     result = rc.result_dict(args.image, setup_path, rec)
     truth = _truth_beside(args.image)
     overlay = rc.draw_overlay(image, rec) if args.overlay else None
@@ -295,6 +296,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="exact (default), ddar, dds or shape_prior")
     r.add_argument("-o", "--output", metavar="OUT.json")
     r.add_argument("--overlay", metavar="OUT.png")
+    r.add_argument("--blur-domain", default=None, metavar="D",
+                   help="where a blurred image was blurred: auto (default: from the image), encoded (image "
+                        "software blurred the stored values) or linear (optics, a renderer's pixel filter)")
     r.set_defaults(func=_cmd_reconstruct)
 
     rp = sub.add_parser("report", help="an HTML report with 3D views, plots and annotated images")

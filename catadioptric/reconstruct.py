@@ -51,12 +51,16 @@ def default_setup_path(image_path) -> Path:
     return Path(image_path).with_suffix(".toml")
 
 
-def run_reconstruction(image_path, setup_path=None, method=None, cube_size=None, progress=None):
+def run_reconstruction(image_path, setup_path=None, method=None, cube_size=None, progress=None, blur_domain=None):
     """Validate the inputs and reconstruct; returns (setup, setup_path, image, Reconstruction)."""
+    from depth.measure import BLUR_DOMAINS
     from depth.reconstruct import ALL_METHODS, DEFAULT_METHOD, reconstruct
     method = method or DEFAULT_METHOD
     if method not in ALL_METHODS:
         raise CatadioptricError(f"--method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
+    blur_domain = blur_domain or "auto"
+    if blur_domain not in ("auto",) + BLUR_DOMAINS:
+        raise CatadioptricError(f"--blur-domain: expected one of auto, {', '.join(BLUR_DOMAINS)}, got {blur_domain!r}")
     if cube_size is not None and not (np.isfinite(cube_size) and cube_size > 0):
         raise CatadioptricError(f"--cube-size: expected a positive edge length in metres, got {cube_size}")
     setup_path = Path(setup_path) if setup_path else default_setup_path(image_path)
@@ -69,16 +73,21 @@ def run_reconstruction(image_path, setup_path=None, method=None, cube_size=None,
     from depth.errors import DepthError
     try:
         rec = reconstruct(image, setup.camera.build(), setup.mirror.build(), method=method,
-                          cube_size=cube_size, progress=progress, compressed=is_jpeg(image_path))
+                          cube_size=cube_size, progress=progress, compressed=is_jpeg(image_path),
+                          blur_domain=blur_domain)
     except DepthError as exc:
         raise CatadioptricError(f"{image_path}: {exc}") from None
     return setup, setup_path, image, rec
 
 
 def result_dict(image_path, setup_path, rec) -> dict:
-    """The reconstruct result of SETUP_FORMAT.md (plus `refused` and the method used)."""
-    return {"image": Path(image_path).name, "setup": Path(setup_path).name, "method": rec.method,
-            "cubes": [c.to_dict() for c in rec.cubes], "refused": [r.to_dict() for r in rec.refused]}
+    """The reconstruct result of SETUP_FORMAT.md (plus `refused`, the method used and, when faces were
+    blurred, `blur_domain`)."""
+    out = {"image": Path(image_path).name, "setup": Path(setup_path).name, "method": rec.method,
+           "cubes": [c.to_dict() for c in rec.cubes], "refused": [r.to_dict() for r in rec.refused]}
+    if rec.blur_domain is not None:  # blurred faces: where their blur was taken to act
+        out["blur_domain"] = rec.blur_domain
+    return out
 
 
 def draw_overlay(image: np.ndarray, rec) -> np.ndarray:

@@ -9,7 +9,7 @@ reason, rather than guessed.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -73,6 +73,7 @@ class Reconstruction:
     cubes: list
     refused: list
     mirror_mask: np.ndarray = field(repr=False)
+    blur_domain: str | None = None  # where the blur of blurred faces was taken to act; None: no face blurred
 
 
 def check_image(image, resolution) -> np.ndarray:
@@ -112,7 +113,7 @@ def despeckled(image: np.ndarray) -> np.ndarray:
 
 
 def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: float | None = None,
-                progress=None, compressed: bool = False) -> Reconstruction:
+                progress=None, compressed: bool = False, blur_domain: str = "auto") -> Reconstruction:
     """Find and estimate every cube in a mirror image.
 
     Parameters
@@ -126,12 +127,19 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     compressed : bool — the image went through lossy (JPEG) compression: cubes are detected on
         the `despeckled` image, edges are located on luma (its chroma is subsampled; colour where
         luma shows no edge) and its ringing is not taken for thin strips beside the faces
+    blur_domain : "auto" (default), "encoded" or "linear" — where the blur of an image with blurred
+        edges acted (`depth.measure.face_outline`): "auto" decides from the image's blurred faces
+        pooled (`depth.measure.blur_domain_verdict`: encoded only when they say so clearly, since a
+        renderer's pixel filter and optical blur act on linear light). `Reconstruction.blur_domain`
+        says what was used.
     """
     from raytrace.truth import mirror_mask, mirror_rays
-    from depth.measure import detect_cubes, face_outline, silhouette
+    from depth.measure import BLUR_DOMAINS, blur_domain_verdict, detect_cubes, face_outline, silhouette
 
     if method not in ALL_METHODS:
         raise DepthError(f"method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
+    if blur_domain not in ("auto",) + BLUR_DOMAINS:
+        raise DepthError(f"blur_domain: expected one of auto, {', '.join(BLUR_DOMAINS)}, got {blur_domain!r}")
     img = check_image(image, camera.resolution)
     mask = mirror_mask(camera, mirror)
     if not mask.any():
@@ -145,7 +153,8 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
 
     detections = detect_cubes(despeckled(img) if compressed else img, mask)
     thin_strips = not compressed  # JPEG ringing beside an edge mimics a thin strip
-    cubes, refused, measured = [], [], []
+    cubes, refused, measured, blurred = [], [], [], []
+    domain, any_blurred = blur_domain, False
     total = max(len(detections), 1)
     for i, det in enumerate(detections):
         bbox = _bbox(det.mask)
@@ -154,13 +163,17 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
                                                         else "occluded by another cube")))
             continue
         channels = "luma" if compressed else "colour"  # JPEG: chroma at half resolution
-        outline = face_outline(img, det.front_face_mask, thin_strips=thin_strips, channels=channels)
+        outline = face_outline(img, det.front_face_mask, thin_strips=thin_strips, channels=channels,
+                               blur_domain="linear")
         if not outline and compressed:  # luma failed as a whole: colour alone
             channels = "colour"
-            outline = face_outline(img, det.front_face_mask, thin_strips=thin_strips)
+            outline = face_outline(img, det.front_face_mask, thin_strips=thin_strips, blur_domain="linear")
         if not outline:
             refused.append(Refusal(bbox, f"face outline: {outline.reason}"))
             continue
+        any_blurred = any_blurred or outline.blurred
+        if outline.blurred and domain != "linear":
+            blurred.append((len(measured), det, channels))
         ys, xs = np.nonzero(det.front_face_mask)
         sil = silhouette(img, det.mask, outline, channels=channels)
         meas = FaceMeasurement(tuple(outline.sides), outline.corners_px,
@@ -171,6 +184,20 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         measured.append((meas, bbox, outline))
         if progress is not None:
             progress(i + 1, total)
+    if blurred:
+        if domain == "auto":  # the image's blurred faces pooled
+            domain = blur_domain_verdict(img, [measured[k][2] for k, _, _ in blurred])
+        if domain == "encoded":  # the edges of the blurred faces again, on the encoded values
+            for k, det, channels in blurred:
+                meas, bbox, _ = measured[k]
+                outline = face_outline(img, det.front_face_mask, thin_strips=thin_strips, channels=channels,
+                                       blur_domain="encoded")
+                if not outline:  # cannot happen after a linear outline succeeded; keep that one
+                    continue
+                sil = silhouette(img, det.mask, outline, channels=channels)
+                measured[k] = (replace(meas, sides_px=tuple(outline.sides), corners_px=outline.corners_px,
+                                       edge_noise_px=outline.edge_noise_px, back_sides_px=sil.sides,
+                                       side_gaps_px=tuple(sil.gaps_px)), bbox, outline)
     if method == "shape_prior":
         estimates = estimate_faces_shape_prior(rays, [m for m, _, _ in measured])
     else:
@@ -184,4 +211,5 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         cubes.append(CubeResult(estimate=est, depth=depth, depth_std=float(est.std.get("z", np.nan)),
                                 corners_px=outline.corners_px, bbox=bbox, edge_points=outline.n_points))
     cubes.sort(key=lambda c: c.bbox[0])
-    return Reconstruction(method=method, cubes=cubes, refused=refused, mirror_mask=mask)
+    return Reconstruction(method=method, cubes=cubes, refused=refused, mirror_mask=mask,
+                          blur_domain=domain if any_blurred else None)

@@ -109,6 +109,8 @@ def test_bad_inputs_exit_1_with_one_line_and_write_nothing(scene, capsys, tmp_pa
          "--method: expected one of")
     _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--cube-size", "-1", "-o", out],
          "--cube-size: expected a positive edge length")
+    _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--blur-domain", "gamma", "-o", out],
+         "--blur-domain: expected one of auto, encoded, linear")
 
 
 def test_image_without_cubes_says_so(scene, capsys, tmp_path):
