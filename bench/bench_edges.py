@@ -8,7 +8,9 @@ the reconstruct pipeline is outlined, and each side's signed offset from the tru
 reflection of the cube's edge, positive outward) is the median over its edge points. It prints,
 per image variant and for sharp / blurred PNG faces (`FaceOutline.blurred`), the median offset m,
 its robust spread sd (1.4826 × MAD), √(m² + sd²), the rms and the 90th percentile of |offset| (the
-heavy tail the constants must also cover; see bench/README.md).
+heavy tail the constants must also cover; see bench/README.md). Blurred faces are read in the blur
+domain `depth.reconstruct` would choose (`depth.measure.blur_domain_verdict`); one more row shows the
+blurred faces of the blur variant all read as optical (linear) blur, the reading before 2026-11-22.
 
 Run: `python -m bench edges` (renders cached in bench/out/renders/).
 """
@@ -37,12 +39,14 @@ def side_offsets(measured: list, truth: list) -> np.ndarray:
     return np.array(out)
 
 
-def measure(variant: str) -> tuple[np.ndarray, np.ndarray]:
+def measure(variant: str, blur_domain: str = "auto") -> tuple[np.ndarray, np.ndarray]:
     """Per-side offsets (N, 4) of every outlined face of the held-out scenes in `variant`, and
-    whether each face's outline found its edges blurred (`FaceOutline.blurred`) (N,)."""
+    whether each face's outline found its edges blurred (`FaceOutline.blurred`) (N,). Blurred faces
+    are measured as `depth.reconstruct` does: `blur_domain` "auto" takes the image's
+    `blur_domain_verdict`; "linear" or "encoded" force one reading."""
     from bench.bench_reconstruct import our_render, true_sides, variant as degrade
     from bench.scenes import make_scenes
-    from depth.measure import detect_cubes, face_outline
+    from depth.measure import blur_domain_verdict, detect_cubes, face_outline
     from depth.reconstruct import despeckled
     from raytrace.truth import cube_truth, mirror_mask
     compressed = variant == "jpeg"
@@ -52,13 +56,16 @@ def measure(variant: str) -> tuple[np.ndarray, np.ndarray]:
         truth = [cube_truth(cam, mir, c.build()) for c in sc.setup.objects]
         centres = np.array([np.mean(t["front_face_corners_px"], axis=0) for t in truth])
         img = degrade(our_render(sc.setup), variant, seed=int(sc.key[:8], 16)).astype(np.float64) / 255.0
-        for det in detect_cubes(despeckled(img) if compressed else img, mirror_mask(cam, mir)):
-            if not det.usable:
-                continue
-            outline = face_outline(img, det.front_face_mask, thin_strips=not compressed,
-                                   channels="luma" if compressed else "colour")
+        kw = dict(thin_strips=not compressed, channels="luma" if compressed else "colour")
+        faces = [(det, face_outline(img, det.front_face_mask, **kw))
+                 for det in detect_cubes(despeckled(img) if compressed else img, mirror_mask(cam, mir))
+                 if det.usable]
+        domain = blur_domain_verdict(img, [o for _, o in faces]) if blur_domain == "auto" else blur_domain
+        for det, outline in faces:
             if not outline:
                 continue
+            if outline.blurred and domain == "encoded":
+                outline = face_outline(img, det.front_face_mask, blur_domain="encoded", **kw)
             j = int(np.argmin(np.linalg.norm(centres - outline.corners_px.mean(axis=0), axis=1)))
             sides, order = true_sides(cam, mir, truth[j], per_side=400, ends=0.0)
             rows.append(side_offsets(outline.sides, [sides[i] for i in order]))
@@ -88,6 +95,9 @@ def main() -> int:
             soft.append(off[blurred].ravel())
     print(_row("PNG, sharp", np.concatenate(sharp)))
     print(_row("PNG, blurred", np.concatenate(soft)))
+    off, blurred = measure("blur", blur_domain="linear")
+    print(_row("blur, all linear", off[blurred].ravel()), "  (blurred faces read as optical blur: the σ = 0.7 px "
+          "blur of the stored values moves edges toward the brighter side)")
     print(f"in use: EDGE_BIAS_PX = {EDGE_BIAS_PX} (PNG), EDGE_BIAS_PX_BLURRED = {EDGE_BIAS_PX_BLURRED} "
           f"(PNG, blurred edges), EDGE_BIAS_PX_COMPRESSED = {EDGE_BIAS_PX_COMPRESSED} (JPEG)")
     return 0

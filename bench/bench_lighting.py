@@ -54,10 +54,11 @@ def score(light: str) -> dict:
     from bench.scenes import make_scenes
     from depth.reconstruct import reconstruct
     from raytrace.truth import cube_truth
-    centre, size, zs, found, total, fp = [], [], [], 0, 0, 0
+    centre, size, zs, found, total, fp, domains = [], [], [], 0, 0, 0, []
     for sc in make_scenes(N, SEED):
         cam, mir = sc.setup.camera.build(), sc.setup.mirror.build()
         rec = reconstruct(render(sc.setup, light), cam, mir)
+        domains.append(rec.blur_domain)
         truth = [cube_truth(cam, mir, c.build()) for c in sc.setup.objects]
         px_true = np.array([np.mean(t["front_face_corners_px"], axis=0) for t in truth])
         used = set()
@@ -77,7 +78,7 @@ def score(light: str) -> dict:
         found += len(used)
         total += len(truth)
     return {"found": found, "total": total, "fp": fp, "centre": np.array(centre), "size": np.array(size),
-            "z": np.array(zs)}
+            "z": np.array(zs), "encoded": domains.count("encoded"), "linear": domains.count("linear")}
 
 
 def main() -> int:
@@ -88,11 +89,12 @@ def main() -> int:
     print(f"unseen scenes make_scenes({N}, seed={SEED}), Mitsuba 3 {ms.SPP} spp, exact estimator; "
           "centre error = |c_hat - c| / distance(c, axis)")
     print(f"{'light':14s} {'found':>7s} {'FP':>3s} | {'centre med':>10s} {'p90':>6s} {'max':>6s} | "
-          f"{'size med':>8s} | within 1 / 2 sigma")
+          f"{'size med':>8s} | within 1 / 2 sigma | blur domain chosen: encoded / linear")
     for light in LIGHTS:
         r = score(light)
         c, sz, z = r["centre"] * 100, r["size"] * 100, r["z"]
         print(f"{light:14s} {r['found']:3d}/{r['total']:<3d} {r['fp']:3d} | {np.median(c):9.2f}% "
               f"{np.percentile(c, 90):5.1f}% {c.max():5.1f}% | {np.median(sz):7.2f}% | "
-              f"{np.mean(z <= 1) * 100:3.0f} / {np.mean(z <= 2) * 100:3.0f} %", flush=True)
+              f"{np.mean(z <= 1) * 100:3.0f} / {np.mean(z <= 2) * 100:3.0f} % | {r['encoded']} / {r['linear']}",
+              flush=True)
     return 0

@@ -267,7 +267,7 @@ def run(quick: bool = False, log=print) -> dict:
                                 "method": method, "resolution": list(setup.camera.resolution),
                                 "seconds": dt if timed else None, "seconds_raymap_cached": None if timed else dt,
                                 "false_positives": sc_["false_positives"], "cubes": sc_["cubes"],
-                                "refused": [r.to_dict() for r in rec.refused]})
+                                "refused": [r.to_dict() for r in rec.refused], "blur_domain": rec.blur_domain})
         if renderer == "ours":
             oracle.append({"scene": sc.name, "kind": sc.kind, "turns": turns, "same_size": sc.same_size,
                            "errors": oracle_errors(camera, mirror, truth)})
@@ -443,6 +443,13 @@ def corner_stats(result: dict, log=print) -> dict:
         if e:
             out[v] = [float(np.median(e)), float(np.percentile(e, 90)), float(np.max(e))]
             log(f"  {v:8s} {out[v][0]:5.2f} / {out[v][1]:5.2f} / {out[v][2]:6.2f}   ({len(e)} faces)")
+    log("")
+    log("images with blurred faces, by the blur domain reconstruct chose (auto): encoded / linear")
+    for v in VARIANTS + ("mitsuba",):
+        doms = [r.get("blur_domain") for r in result["records"] if r["method"] == "exact" and r["variant"] == v]
+        if doms:
+            out[f"blur_domain/{v}"] = {d: doms.count(d) for d in ("encoded", "linear")}
+            log(f"  {v:8s} {doms.count('encoded'):3d} / {doms.count('linear'):3d}   of {len(doms)} images")
     return out
 
 
