@@ -44,6 +44,7 @@ class FailedMeasurement:
     """A measurement that could not be made; falsy, carries its `reason`."""
 
     reason: str
+    no_contrast_side: int | None = None  # a side (index into SIDE_NAMES) with no contrast at all
 
     def __bool__(self) -> bool:
         return False
@@ -777,6 +778,33 @@ def face_outline(
     )
 
 
+def extended_to_blob(face_mask: np.ndarray, blob_mask: np.ndarray, side: int) -> np.ndarray:
+    """The face mask grown across one side (index into `SIDE_NAMES`) to the blob's outline.
+
+    Where a side of the face mask shows no contrast at all, the mask was cut inside one uniformly lit
+    region: the front face and a side (or top) face lit alike, or a front face split where nothing
+    separates it. Either way the image shows only the outline of their union there, which
+    `depth.estimate`'s ``exact`` fits as the cube's outer contour (the silhouette gap is then 0).
+    Each row (left/right) or column (top/bottom) of the face is extended through the blob's run of
+    pixels that it starts in."""
+    face = np.asarray(face_mask, dtype=bool)
+    blob = np.asarray(blob_mask, dtype=bool) | face
+    f, b = (face, blob) if side < 2 else (face.T, blob.T)
+    if side in (1, 3):  # grow toward larger indices: mirror, grow toward smaller ones, mirror back
+        f, b = f[:, ::-1], b[:, ::-1]
+    rows = np.flatnonzero(f.any(axis=1))
+    out = f.copy()
+    if len(rows):
+        cols = np.arange(f.shape[1])
+        first = np.argmax(f[rows], axis=1)  # the face's first pixel in each row
+        gap = ~b[rows] & (cols[None, :] < first[:, None])
+        start = np.where(gap.any(axis=1), f.shape[1] - 1 - np.argmax(gap[:, ::-1], axis=1) + 1, 0)
+        out[rows] |= (cols[None, :] >= start[:, None]) & (cols[None, :] < first[:, None])
+    if side in (1, 3):
+        out = out[:, ::-1]
+    return out if side < 2 else out.T
+
+
 def _shift_lines(lines: np.ndarray, origin: np.ndarray) -> np.ndarray:
     """u' = a·v' + b in a frame shifted by origin (u' = u + ou, v' = v + ov)."""
     a, b = lines[:, 0], lines[:, 1]
@@ -1072,7 +1100,7 @@ def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing, en
                 e, c = e_enc, c_enc
         good = (c >= min_contrast) & (np.abs(e) <= half_width - 0.5)
         beyond = (c >= min_contrast) & (np.abs(e) > half_width - 0.5)
-        if (i < 2 and good.sum() < min_points and (c >= min_contrast).sum() >= min_points
+        if (good.sum() < min_points and (c >= min_contrast).sum() >= min_points
                 and max((beyond & (e > 0)).sum(), (beyond & (e < 0)).sum()) >= 0.8 * (c >= min_contrast).sum()):
             # a left/right side's edge lies beyond the profile's reach all along (the mask's side is
             # off by more than a pixel, e.g. beside a bright strip): step toward it; the next pass
@@ -1082,7 +1110,8 @@ def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing, en
         if good.sum() < min_points:
             return FailedMeasurement(
                 f"{name} side: {int(good.sum())} edge points with contrast ≥ {min_contrast}, "
-                f"need {min_points} (median contrast {float(np.median(c)):.3f})"
+                f"need {min_points} (median contrast {float(np.median(c)):.3f})",
+                no_contrast_side=i if float(np.median(c)) < min_contrast else None,
             )
         q = p[good] + e[good, None] * n[good]
         if i < 2:

@@ -666,3 +666,35 @@ def test_blur_domain_evidence_tells_where_the_blur_acted():
         assert blur_domain_verdict(img, outlines) == acted
     assert blur_domain_verdict(image, [face_outline(image, pixel_truth(image.shape[:2], c, "face"))
                                        for c in cubes]) is None  # sharp: no blurred face, no verdict
+
+
+def test_a_face_mask_cut_inside_a_uniform_face_is_grown_back_to_the_outline():
+    from depth.measure import extended_to_blob
+    cube = three_cubes()[1]
+    image, _ = make_image((200, 240), [cube], background="grey", decoy=False)
+    face = pixel_truth(image.shape[:2], cube, "face")
+    u = np.arange(image.shape[1])[None, :]
+    for side, cut in ((0, face & (u >= 106)), (1, face & (u <= 113))):  # 5 px cut off inside the face
+        failed = face_outline(image, cut)
+        assert not failed and failed.no_contrast_side == side, failed
+        grown = extended_to_blob(cut, face, side)
+        assert np.array_equal(grown, face)  # the row runs end at the blob's outline, no further
+        outline = face_outline(image, grown)
+        assert outline and corner_errors(outline, cube).max() <= 0.1
+    # a side with contrast is not reported as one without
+    assert face_outline(image, face).__class__ is FaceOutline
+
+
+def test_extended_to_blob_stops_at_gaps_in_the_blob():
+    from depth.measure import extended_to_blob
+    face = np.zeros((6, 12), bool)
+    face[1:5, 6:9] = True
+    blob = face.copy()
+    blob[1:5, 3:6] = True  # joined on the left
+    blob[1:5, 0:2] = True  # a separate piece beyond a gap at column 2
+    grown = extended_to_blob(face, blob, 0)
+    assert grown[1:5, 3:9].all() and not grown[:, :3].any() and not grown[[0, 5]].any()
+    top = extended_to_blob(face.T, blob.T, 2)  # columns: the same grown upward
+    assert np.array_equal(top, grown.T)
+    right = extended_to_blob(face[:, ::-1], blob[:, ::-1], 1)  # mirrored: grown rightward
+    assert np.array_equal(right, grown[:, ::-1])
