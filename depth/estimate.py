@@ -88,11 +88,11 @@ darkening the edge, anti-aliasing); treating the points as independent would mak
 `python -m bench edges` measures the per-side offsets on held-out renders: on 16-spp renders the
 typical side is off by 0.02 px (robust σ), but 10 % of sides by more than 0.1 px (clean) or 0.2 px
 (noise). The value, from earlier 4-spp renders (robust σ 0.14 px), is kept because it covers that
-tail: on the reconstruct bench 93 % of clean-image depth errors fall within 1 σ, 94 % within 2 σ."""
+tail: on the reconstruct bench 92 % of clean-image depth errors fall within 1 σ, 95 % within 2 σ."""
 
 EDGE_BIAS_PX_COMPRESSED = 0.18
 """The same for JPEG images (`FaceMeasurement.edge_bias_px`, which `depth.reconstruct` sets). Held-out
-JPEG sides: robust σ 0.03 px, 90th percentile 0.59 px; bench coverage 58 / 73 % within 1 / 2 σ."""
+JPEG sides: robust σ 0.03 px, 90th percentile 0.59 px; bench coverage 59 / 76 % within 1 / 2 σ."""
 
 EDGE_BIAS_PX_BLURRED = 0.28
 """The same for faces whose edges are blurred (`depth.measure.FaceOutline.blurred`). A blur of the
@@ -100,7 +100,7 @@ stored sRGB values read as optical blur moves edges toward the brighter side (+0
 0.16 px on the held-out blurred renders, `python -m bench edges`); `depth.reconstruct` now tells the two
 blurs apart (`depth.measure.blur_domain_verdict`) and then measures them at +0.02 ± 0.06 px. The
 verdict leaves weak evidence to the linear reading, so the constant (√(0.146² + 0.236²) as first
-measured) still covers a misread blur: bench blur coverage 82 / 89 % within 1 / 2 σ."""
+measured) still covers a misread blur: bench blur coverage 83 / 89 % within 1 / 2 σ."""
 
 
 @dataclass(frozen=True)
