@@ -953,6 +953,22 @@ def _side_samples(lines, quads, corners, margin, spacing):
     return pts, nrm
 
 
+def _profiles(img, points, normals, half_width, step):
+    """Bilinear samples of img along each point's normal at s = −L, −L + step, …, L: (N, K, C)."""
+    s = np.arange(-half_width, half_width + step / 2, step)
+    u = points[:, 0:1] + s[None, :] * normals[:, 0:1]
+    v = points[:, 1:2] + s[None, :] * normals[:, 1:2]
+    return _bilinear(img, u, v)
+
+
+def _along_side(levels: np.ndarray) -> np.ndarray:
+    """Levels (N, ...) of a side's points median-filtered over 5 neighbours along the side (less noise,
+    yet keeps the steps of a textured background); as they are for fewer than 5 points."""
+    if len(levels) < 5:
+        return levels
+    return ndimage.median_filter(levels, size=(5,) + (1,) * (levels.ndim - 1), mode="nearest")
+
+
 def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25):
     """Signed distance along the normal from each point to the edge, and the contrast.
 
@@ -965,21 +981,14 @@ def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25):
     is used. Given a fourth channel (luma, `_edge_image(..., "luma")`), the profile of luma is
     used instead wherever its contrast reaches `min_contrast`.
     """
-    s = np.arange(-half_width, half_width + step / 2, step)
-    u = points[:, 0:1] + s[None, :] * normals[:, 0:1]
-    v = points[:, 1:2] + s[None, :] * normals[:, 1:2]
-    prof = _bilinear(linear, u, v)  # (N, K, 3) or, with a luma channel, (N, K, 4)
+    prof = _profiles(linear, points, normals, half_width, step)  # (N, K, 3) or, with luma, (N, K, 4)
     luma = prof[..., 3] if prof.shape[-1] == 4 else None
     prof = prof[..., :3]
     chroma = prof - prof.mean(axis=2, keepdims=True)
     qs, contrasts = [], []
     for p in (chroma, prof):
         # Levels at exactly ±L: nearer samples mix in the edge through the bilinear footprint.
-        c_in, c_out = p[:, 0], p[:, -1]
-        if len(points) >= 5:
-            # median along the side: less noise, yet keeps the steps of a textured background
-            c_in = ndimage.median_filter(c_in, size=(5, 1), mode="nearest")
-            c_out = ndimage.median_filter(c_out, size=(5, 1), mode="nearest")
+        c_in, c_out = _along_side(p[:, 0]), _along_side(p[:, -1])
         d = c_in - c_out
         dd = np.sum(d * d, axis=1)
         safe = np.where(dd > 0, dd, 1.0)
@@ -989,10 +998,7 @@ def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25):
     q = np.where(use_chroma[:, None], qs[0], qs[1])
     contrast = np.where(use_chroma, contrasts[0], contrasts[1])
     if luma is not None:  # luma wherever it shows the edge (JPEG: full resolution), colour elsewhere
-        y_in, y_out = luma[:, 0], luma[:, -1]
-        if len(points) >= 5:
-            y_in = ndimage.median_filter(y_in, size=5, mode="nearest")
-            y_out = ndimage.median_filter(y_out, size=5, mode="nearest")
+        y_in, y_out = _along_side(luma[:, 0]), _along_side(luma[:, -1])
         dy = y_in - y_out
         use_luma = np.abs(dy) >= min_contrast
         q = np.where(use_luma[:, None], (luma - y_out[:, None]) / np.where(use_luma, dy, 1.0)[:, None], q)
@@ -1021,15 +1027,9 @@ def _edge_offsets_encoded(srgb, points, normals, half_width, min_contrast, step=
     (m − ½) + h(c), with h(c) the encoded fraction of that mixed pixel, so c = h⁻¹(area − m + ½) and
     the edge is (m − ½) + c: exact for an edge along the pixel grid, whatever the blur's width.
     """
-    s = np.arange(-half_width, half_width + step / 2, step)
-    u = points[:, 0:1] + s[None, :] * normals[:, 0:1]
-    v = points[:, 1:2] + s[None, :] * normals[:, 1:2]
-    prof = _bilinear(srgb, u, v)[..., :3]
+    prof = _profiles(srgb, points, normals, half_width, step)[..., :3]
     chroma = prof - prof.mean(axis=2, keepdims=True)
-    cin_full, cout_full = prof[:, 0], prof[:, -1]
-    if len(points) >= 5:
-        cin_full = ndimage.median_filter(cin_full, size=(5, 1), mode="nearest")
-        cout_full = ndimage.median_filter(cout_full, size=(5, 1), mode="nearest")
+    cin_full, cout_full = _along_side(prof[:, 0]), _along_side(prof[:, -1])
     # contrast and the choice of projection as `_edge_offsets` makes them, in linear light
     lin_in, lin_out = srgb_to_linear(cin_full), srgb_to_linear(cout_full)
     chroma_lin = lambda c: c - c.mean(axis=-1, keepdims=True)  # noqa: E731
@@ -1045,10 +1045,8 @@ def _edge_offsets_encoded(srgb, points, normals, half_width, min_contrast, step=
     e = np.sum((q[:, 1:] + q[:, :-1]) * 0.5, axis=1) * step - half_width  # along the normal
     # one step only: the outside keeps its level a pixel farther out (not so beside a strip of a
     # side face, whose two steps no single area describes)
-    far = _bilinear(srgb, points[:, 0] + (half_width + 1.0) * normals[:, 0],
-                    points[:, 1] + (half_width + 1.0) * normals[:, 1])[..., :3]
-    if len(points) >= 5:
-        far = ndimage.median_filter(far, size=(5, 1), mode="nearest")
+    far = _along_side(_bilinear(srgb, points[:, 0] + (half_width + 1.0) * normals[:, 0],
+                                points[:, 1] + (half_width + 1.0) * normals[:, 1])[..., :3])
     one_step = np.abs(np.sum((proj(far) - proj(cout_full)) * d, axis=1) / safe) <= _ONE_STEP_TOLERANCE
 
     # the crossing pixel row (|n_u| ≥ |n_v|) or column; x increases outward along it
@@ -1093,11 +1091,11 @@ def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing, en
         p, n = p[inside], n[inside]
         if len(p) < min_points:
             return FailedMeasurement(f"{name} side: {len(p)} edge points, need {min_points}")
-        e, c = _edge_offsets(linear, p, n, half_width, min_contrast)
+        one_step = None
         if encoded is not None:  # blurred after encoding: the encoded area where the side is one step
-            e_enc, c_enc, one_step = _edge_offsets_encoded(encoded, p, n, half_width, min_contrast)
-            if one_step.mean() >= _ONE_STEP_SHARE:
-                e, c = e_enc, c_enc
+            e, c, one_step = _edge_offsets_encoded(encoded, p, n, half_width, min_contrast)
+        if one_step is None or one_step.mean() < _ONE_STEP_SHARE:
+            e, c = _edge_offsets(linear, p, n, half_width, min_contrast)
         good = (c >= min_contrast) & (np.abs(e) <= half_width - 0.5)
         beyond = (c >= min_contrast) & (np.abs(e) > half_width - 0.5)
         if (good.sum() < min_points and (c >= min_contrast).sum() >= min_points
