@@ -953,6 +953,11 @@ def _side_samples(lines, quads, corners, margin, spacing):
     return pts, nrm
 
 
+def _chroma(colour: np.ndarray) -> np.ndarray:
+    """Colours (..., 3) without their grey component (each minus its channel mean)."""
+    return colour - colour.mean(axis=-1, keepdims=True)
+
+
 def _profiles(img, points, normals, half_width, step):
     """Bilinear samples of img along each point's normal at s = −L, −L + step, …, L: (N, K, C)."""
     s = np.arange(-half_width, half_width + step / 2, step)
@@ -984,9 +989,8 @@ def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25):
     prof = _profiles(linear, points, normals, half_width, step)  # (N, K, 3) or, with luma, (N, K, 4)
     luma = prof[..., 3] if prof.shape[-1] == 4 else None
     prof = prof[..., :3]
-    chroma = prof - prof.mean(axis=2, keepdims=True)
     qs, contrasts = [], []
-    for p in (chroma, prof):
+    for p in (_chroma(prof), prof):
         # Levels at exactly ±L: nearer samples mix in the edge through the bilinear footprint.
         c_in, c_out = _along_side(p[:, 0]), _along_side(p[:, -1])
         d = c_in - c_out
@@ -1028,20 +1032,20 @@ def _edge_offsets_encoded(srgb, points, normals, half_width, min_contrast, step=
     the edge is (m − ½) + c: exact for an edge along the pixel grid, whatever the blur's width.
     """
     prof = _profiles(srgb, points, normals, half_width, step)[..., :3]
-    chroma = prof - prof.mean(axis=2, keepdims=True)
     cin_full, cout_full = _along_side(prof[:, 0]), _along_side(prof[:, -1])
     # contrast and the choice of projection as `_edge_offsets` makes them, in linear light
     lin_in, lin_out = srgb_to_linear(cin_full), srgb_to_linear(cout_full)
-    chroma_lin = lambda c: c - c.mean(axis=-1, keepdims=True)  # noqa: E731
-    c_lin = np.linalg.norm(chroma_lin(lin_in) - chroma_lin(lin_out), axis=1)
+    c_lin = np.linalg.norm(_chroma(lin_in) - _chroma(lin_out), axis=1)
     use_chroma = c_lin >= min_contrast
     contrast = np.where(use_chroma, c_lin, np.linalg.norm(lin_in - lin_out, axis=1))
-    proj = lambda c: np.where(use_chroma[:, None], c - c.mean(axis=-1, keepdims=True), c)  # noqa: E731
+
+    def proj(c):  # chroma where the chroma shows the edge, the full colour elsewhere (per point)
+        return np.where(use_chroma.reshape((-1,) + (1,) * (c.ndim - 1)), _chroma(c), c)
+
     d = proj(cin_full) - proj(cout_full)
     dd = np.sum(d * d, axis=1)
     safe = np.where(dd > 0, dd, 1.0)
-    p = np.where(use_chroma[:, None, None], chroma, prof)
-    q = np.einsum("nkc,nc->nk", p - proj(cout_full)[:, None, :], d) / safe[:, None]
+    q = np.einsum("nkc,nc->nk", proj(prof) - proj(cout_full)[:, None, :], d) / safe[:, None]
     e = np.sum((q[:, 1:] + q[:, :-1]) * 0.5, axis=1) * step - half_width  # along the normal
     # one step only: the outside keeps its level a pixel farther out (not so beside a strip of a
     # side face, whose two steps no single area describes)
@@ -1296,10 +1300,9 @@ def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast
     pix = linear[v, u]
     if use_chroma:
         # without the grey component (as `_edge_offsets`): a grey background's texture vanishes
-        chroma = lambda c: c - c.mean(axis=-1, keepdims=True)  # noqa: E731
-        cc = chroma(c_in) - chroma(c_out)
+        cc = _chroma(c_in) - _chroma(c_out)
         if np.median(np.sum(cc * cc, axis=1)) >= min_contrast**2:
-            c_in, c_out, pix = chroma(c_in), chroma(c_out), chroma(pix)
+            c_in, c_out, pix = _chroma(c_in), _chroma(c_out), _chroma(pix)
     k = np.clip(np.searchsorted(t_st, t), 0, len(t_st) - 1)
     delta = (c_in - c_out)[k]
     dd = np.sum(delta * delta, axis=1)
