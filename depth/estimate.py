@@ -78,7 +78,16 @@ log) of its ddar start: far beyond lies only a degenerate fit, a face grown with
 NO_SIDE_FACE_GAP_PX = 0.75
 """A measured silhouette gap (`FaceMeasurement.side_gaps_px`) up to this says no distinct side face
 shows beside that side of the front face (as `depth.measure.silhouette`'s `min_gap_px`): the side
-is then fitted as the cube's outer contour by ``exact``."""
+is then fitted as the cube's outer contour by ``exact``. The default of
+`FaceMeasurement.no_side_face_gap_px`, for blurred or compressed faces, whose silhouettes beside a
+hidden side face measure gaps up to 0.45 px (blur, 94 sides) or 1.5 px (JPEG, 99th percentile)."""
+
+NO_SIDE_FACE_GAP_PX_SHARP = 0.25
+"""The same for sharp faces of uncompressed images. Beside a hidden side face their gaps stay within
+0.05 px (99th percentile; 0.15 px at most over 93 clean sides of the reconstruct bench), while
+distinct side faces only 0.3–0.9 px wide measure gaps of 0.33–0.91 px: with the blurred faces'
+threshold these were read as the outer contour, and `exact` then set the front face's edge on the
+side face's far edge (s04/2: the right side 0.78 px off, the depth 7.7 %)."""
 
 EDGE_BIAS_PX = 0.15
 """Systematic edge-location uncertainty of one whole side, in pixels (σ of a common offset of all its
@@ -120,6 +129,8 @@ class FaceMeasurement:
         (or, opposite a distinct side face, as a side whose face is hidden).
     strip_px : (4,) float, width of a thin strip of another face found beside each side
         (`depth.measure.FaceOutline.strip_px`): such a face is distinct, not merged.
+    no_side_face_gap_px : float, the largest gap read as "no distinct side face" (`NO_SIDE_FACE_GAP_PX`;
+        `NO_SIDE_FACE_GAP_PX_SHARP` for sharp faces of uncompressed images)
     """
 
     sides_px: tuple
@@ -130,6 +141,7 @@ class FaceMeasurement:
     edge_bias_px: float = EDGE_BIAS_PX
     side_gaps_px: tuple = (float("nan"), float("nan"))
     strip_px: tuple = (0.0, 0.0, 0.0, 0.0)
+    no_side_face_gap_px: float = NO_SIDE_FACE_GAP_PX
 
 
 @dataclass(frozen=True)
@@ -475,7 +487,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     # Where the other side shows a distinct side face, the cube is turned that way and this side's
     # face is hidden: its edge is the front face's own.
     no_back = all(sp is None for sp in meas.back_sides_px)
-    no_gap = [k for k in (0, 1) if np.isfinite(gaps[k]) and gaps[k] <= NO_SIDE_FACE_GAP_PX]
+    no_gap = [k for k in (0, 1) if np.isfinite(gaps[k]) and gaps[k] <= meas.no_side_face_gap_px]
     contour_sides = no_gap if no_back else []
     # ... and a pose that would show it is penalised (up to 16 points per side carry the penalty).
     hidden = [np.flatnonzero(sid == k)[:: max(np.count_nonzero(sid == k) // 16, 1)][:16]
@@ -505,7 +517,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     # A top or bottom side with no gap to the silhouette and no thin strip of another face beside
     # it, on a cube with no distinct side face either: that face is hidden or merged (see `fit`).
     tb_candidates = [k for k in (2, 3) if len(contour_sides) == 2 and np.isfinite(gaps[k])
-                     and gaps[k] <= NO_SIDE_FACE_GAP_PX and not meas.strip_px[k] > 0]
+                     and gaps[k] <= meas.no_side_face_gap_px and not meas.strip_px[k] > 0]
     front_idx = np.flatnonzero(sid < 4)
 
     def face_pairs(faces):

@@ -14,7 +14,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from depth.errors import DepthError
-from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED, METHODS, CubeEstimate,
+from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED, METHODS, NO_SIDE_FACE_GAP_PX,
+                            NO_SIDE_FACE_GAP_PX_SHARP, CubeEstimate,
                             FaceMeasurement, estimate_face, estimate_faces_shape_prior)
 
 __all__ = ["ALL_METHODS", "CubeResult", "Refusal", "Reconstruction", "reconstruct", "check_image"]
@@ -200,7 +201,9 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
                                np.column_stack([xs, ys]).astype(np.float64), outline.edge_noise_px,
                                back_sides_px=sil.sides, side_gaps_px=tuple(sil.gaps_px), strip_px=tuple(outline.strip_px),
                                edge_bias_px=EDGE_BIAS_PX_COMPRESSED if compressed
-                               else EDGE_BIAS_PX_BLURRED if outline.blurred else EDGE_BIAS_PX)
+                               else EDGE_BIAS_PX_BLURRED if outline.blurred else EDGE_BIAS_PX,
+                               no_side_face_gap_px=NO_SIDE_FACE_GAP_PX if compressed or outline.blurred
+                               else NO_SIDE_FACE_GAP_PX_SHARP)
         measured.append((meas, bbox, outline))
         if progress is not None:
             progress(i + 1, total)
