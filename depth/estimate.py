@@ -27,7 +27,7 @@ A face that cannot be estimated gives a falsy `FailedEstimate` with its reason.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
@@ -810,4 +810,37 @@ def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact
         return FailedEstimate(method, f"aspect ratio: {exc}")
     if method == "ddar":
         return start
-    return _exact(rays, meas, start, local, cube_size, up)
+    est = _exact(rays, meas, start, local, cube_size, up)
+    gaps = np.r_[np.asarray(meas.side_gaps_px, dtype=np.float64), np.full(2, np.nan)][:2]
+    thin = [k for k in (0, 1) if np.isfinite(gaps[k]) and meas.no_side_face_gap_px < gaps[k] <= NO_SIDE_FACE_GAP_PX]
+    if not thin:
+        return est
+    # A silhouette a few tenths of a pixel beyond a sharp face's side: a distinct side face that thin,
+    # or one lit like the front face and merged into its outline but for its last tenths of a pixel.
+    # Both readings are fitted; the distinct one stands when its pose shows that side face about as
+    # wide as the gap (nearer to it than the contour reading's 0).
+    contour = _exact(rays, replace(meas, no_side_face_gap_px=NO_SIDE_FACE_GAP_PX), start, local, cube_size, up)
+    if not est or not contour:
+        return est or contour
+    vertical = np.asarray(up, dtype=np.float64) if up is not None else (
+        local.axes[0] if local.vertical == 0 else local.axes[1])
+    widths = [_side_face_width_px(rays, meas.sides_px[k], est, vertical) for k in thin]
+    return est if all(abs(w - gaps[k]) < gaps[k] for w, k in zip(widths, thin)) else contour
+
+
+def _side_face_width_px(rays: RayFunction, side_px: np.ndarray, est: CubeEstimate, vertical: np.ndarray) -> float:
+    """How wide (px, median along the side) the estimated cube's side face beside the front face's
+    left or right side images; ≤ 0 where that face is hidden."""
+    n = est.normal
+    v = vertical - (vertical @ n) * n
+    v /= np.linalg.norm(v)
+    axes = np.stack([v, np.cross(n, v), n])
+    pts = np.asarray(side_px, dtype=np.float64)
+    q, r = rays(pts)
+    q2, r2 = rays(pts + np.array([0.5, 0.0]))
+    _, b = _face_coords(q, r, est.front_face_center, axes)
+    _, b2 = _face_coords(q2, r2, est.front_face_center, axes)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ext = np.sign(np.nanmedian(b)) * est.size * (r @ axes[1]) / (r @ axes[2]) / (np.abs(b2 - b) / 0.5)
+    ext = ext[np.isfinite(ext)]
+    return float(np.median(ext)) if len(ext) else 0.0
