@@ -97,7 +97,7 @@ darkening the edge, anti-aliasing); treating the points as independent would mak
 `python -m bench edges` measures the per-side offsets on held-out renders: on 16-spp renders the
 typical side is off by 0.02 px (robust σ), but 10 % of sides by more than 0.18 px (clean) or 0.24 px
 (noise). The value, from earlier 4-spp renders (robust σ 0.14 px), is kept because it covers that
-tail: on the reconstruct bench 92 % of clean-image depth errors fall within 1 σ, 95 % within 2 σ."""
+tail: on the reconstruct bench 93 % of clean-image depth errors fall within 1 σ, 97 % within 2 σ."""
 
 EDGE_BIAS_PX_COMPRESSED = 0.18
 """The same for JPEG images (`FaceMeasurement.edge_bias_px`, which `depth.reconstruct` sets). Held-out
