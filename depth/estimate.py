@@ -466,10 +466,8 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     p, d, sid, pix = (np.concatenate(x) for x in zip(*sides))
     # Base axes: vertical = the scene's up (or the local axis-parallel slit), normal = toward the mirror.
     n0 = start.normal / np.linalg.norm(start.normal)
-    vert_world = local.axes[0] if local.vertical == 0 else local.axes[1]
-    if up is not None:  # signed like the local slit
-        up = np.asarray(up, dtype=np.float64) / np.linalg.norm(up)
-        vert_world = up if up @ vert_world >= 0 else -up
+    vert_world = _vertical(local, up)
+    if up is not None:
         n0 = n0 - (n0 @ vert_world) * vert_world
         n0 /= np.linalg.norm(n0)
     v0 = vert_world - (vert_world @ n0) * n0
@@ -822,10 +820,17 @@ def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact
     contour = _exact(rays, replace(meas, no_side_face_gap_px=NO_SIDE_FACE_GAP_PX), start, local, cube_size, up)
     if not est or not contour:
         return est or contour
-    vertical = np.asarray(up, dtype=np.float64) if up is not None else (
-        local.axes[0] if local.vertical == 0 else local.axes[1])
-    widths = [_side_face_width_px(rays, meas.sides_px[k], est, vertical) for k in thin]
+    widths = [_side_face_width_px(rays, meas.sides_px[k], est, _vertical(local, up)) for k in thin]
     return est if all(abs(w - gaps[k]) < gaps[k] for w, k in zip(widths, thin)) else contour
+
+
+def _vertical(local: LocalXSlit, up) -> np.ndarray:
+    """The scene's vertical (unit): `up`, signed like the local axis-parallel slit, or that slit."""
+    slit = local.axes[0] if local.vertical == 0 else local.axes[1]
+    if up is None:
+        return slit
+    up = np.asarray(up, dtype=np.float64) / np.linalg.norm(up)
+    return up if up @ slit >= 0 else -up
 
 
 def _side_face_width_px(rays: RayFunction, side_px: np.ndarray, est: CubeEstimate, vertical: np.ndarray) -> float:
