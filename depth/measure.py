@@ -1656,26 +1656,4 @@ def _top_bottom_gaps(image, blob_mask, outline, margin_frac, half_width, min_con
         qa, qb, qc = outline.quadratics[k]
         gaps[k] = float(np.median(sign * (pts[:, 1] - ((qa * pts[:, 0] + qb) * pts[:, 0] + qc))))
     return gaps
-    for k, sign in ((0, -1.0), (1, 1.0)):
-        sub = blob_mask[:, cols]
-        has = sub.any(axis=0)
-        rows = np.where(sign < 0, np.argmax(sub, axis=0), h - 1 - np.argmax(sub[::-1], axis=0))
-        c, r = cols[has].astype(np.float64), rows[has].astype(np.float64)
-        start = np.stack([c, r + 0.5 * sign], axis=1)  # the pixel boundary, outward
-        inside = (start[:, 1] - half_width >= 0) & (start[:, 1] + half_width <= h - 1)
-        start = start[inside]
-        if len(start) < min(min_points, 3):
-            continue
-        normal = np.tile([0.0, sign], (len(start), 1))
-        x0, y0 = int(max(start[:, 0].min() - 1, 0)), int(max(start[:, 1].min() - 4, 0))
-        x1, y1 = int(min(start[:, 0].max() + 2, w)), int(min(start[:, 1].max() + 5, h))
-        linear = _edge_image(image[y0:y1, x0:x1], channels)
-        e, contrast = _edge_offsets(linear, start - [x0, y0], normal, half_width, min_contrast)
-        good = (contrast >= min_contrast) & (np.abs(e) <= half_width - 0.5)
-        if good.sum() < 3:
-            continue
-        pts = start[good] + e[good, None] * normal[good]
-        qa, qb, qc = outline.quadratics[k]
-        gaps[k] = float(np.median(sign * (pts[:, 1] - ((qa * pts[:, 0] + qb) * pts[:, 0] + qc))))
-    return gaps
 
