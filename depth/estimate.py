@@ -441,6 +441,11 @@ _FACES = {False: (0, 2, 6, 4), True: (1, 3, 7, 5)}  # the side faces at b < 0 an
 _TOPS = {False: (0, 1, 5, 4), True: (2, 3, 7, 6)}  # the top/bottom faces at a < 0 and at a > 0
 
 
+def _rms(r: np.ndarray) -> float:
+    """Root mean square of residuals."""
+    return float(np.sqrt(np.mean(r ** 2)))
+
+
 def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local: LocalXSlit,
            cube_size: float | None, up=None) -> CubeEstimate | FailedEstimate:
     """Non-central PnP of the square face (and its back vertical edges) from exact per-pixel rays.
@@ -513,8 +518,10 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     # seen). The measured outline is the boundary of their union; `contour` gives it.
     merged = [(_FRONT, None, 0.0)] + [(_FACES[sign[k] > 0], 1, sign[k]) for k in contour_sides]
     # A top or bottom side with no gap to the silhouette and no thin strip of another face beside
-    # it, on a cube with no distinct side face either: that face is hidden or merged (see `fit`).
-    tb_candidates = [k for k in (2, 3) if len(contour_sides) == 2 and np.isfinite(gaps[k])
+    # it: that face is hidden or merged (see `fit`). A distinct side face does not rule out a merged
+    # top or bottom face: a sun from the side lights a side face differently from the front face, while
+    # the top and bottom faces may still take the same sky light as the front face.
+    tb_candidates = [k for k in (2, 3) if np.isfinite(gaps[k])
                      and gaps[k] <= meas.no_side_face_gap_px and not meas.strip_px[k] > 0]
     front_idx = np.flatnonzero(sid < 4)
 
@@ -667,13 +674,13 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         # Stage 2, any orientation, only when the upright face does not explain the edges (rms above
         # UPRIGHT_MISFIT_PX, many times the sub-pixel edge scatter), kept only when it halves the misfit:
         # a free tilt fitted to noise slides along a valley of tilt against depth.
-        rms1 = float(np.sqrt(np.mean(sol1.fun ** 2)))
+        rms1 = _rms(sol1.fun)
         if rms1 > UPRIGHT_MISFIT_PX:
             weight_upright = weight
             rolls = np.deg2rad([0.0, -20.0, 20.0, -40.0, 40.0])
             starts = [np.r_[origin[:2], roll, origin[3:]] for origin in (x_best, np.zeros(7)) for roll in rolls]
             stage2 = refined(True, starts)
-            if stage2 is not None and np.sqrt(np.mean(stage2[1].fun ** 2)) < 0.5 * rms1:
+            if stage2 is not None and _rms(stage2[1].fun) < 0.5 * rms1:
                 x_best, cov = stage2[0], covariance(stage2[1].jac, stage2[1].fun, 7)
             else:
                 weight = weight_upright
@@ -695,10 +702,18 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             heights.append(float(np.median(ext[np.isfinite(ext)])) if np.isfinite(ext).any() else 0.0)
         tops = [k for k, hk in zip(tb_candidates, heights) if hk > MERGED_TOP_PX]
         if tops:
+            # The merged reading stands only when it fits the edges no worse. A pose that is off
+            # elsewhere can also show that face (a little over a pixel), and the merged outline then
+            # drags the pose further off to make room for a face that is not there.
+            rms_before = _rms(resid(result[0])[:len(sid)])
+            before = (result, merged, weight)
             merged = merged + [(_TOPS[sign[k] > 0], 0, sign[k]) for k in tops]
             pairs, pair_axis, pair_sign = face_pairs(merged)
             weight = weight_start
-            result = fit() or result
+            result = fit()
+            if result is None or _rms(resid(result[0])[:len(sid)]) > rms_before:
+                result, merged, weight = before
+                pairs, pair_axis, pair_sign = face_pairs(merged)
     if result is None:
         return FailedEstimate("exact", "least squares did not converge from any starting turn")
     x_best, cov = result
@@ -707,7 +722,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         return FailedEstimate("exact", "least squares diverged")
     normal = _square_axes(rot, base)[2]
     r = resid(x_best)[:len(sid)]  # the edge points' misfit
-    rms = float(np.sqrt(np.mean(r ** 2)))
+    rms = _rms(r)
     if rms > MAX_EDGE_MISFIT_PX:
         return FailedEstimate("exact", f"the edges do not fit one square face (rms misfit {rms:.2f} px)")
 

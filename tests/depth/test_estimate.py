@@ -229,3 +229,29 @@ def test_exact_recovers_a_uniformly_lit_cube_from_its_silhouette(rig, height, ya
     naive = estimate_face(rig.rays, dataclasses.replace(meas, side_gaps_px=(np.nan,) * 4),
                           method="exact", up=rig.mirror.axis)
     assert not naive or centre_error(rig, naive, cube) > 0.02
+
+
+@pytest.mark.parametrize("height, yaw", [(-0.05, -12.0), (-0.05, 20.0), (0.06, -20.0), (0.06, 12.0)])
+def test_a_merged_top_or_bottom_face_beside_a_distinct_side_face(rig, height, yaw):
+    """A sun from the side sets one side face apart, while the top (cube below the camera) or bottom
+    face takes the sky light the front face takes and merges with it: that side of the outline is the
+    cube's silhouette, found from ray–box hits (`silhouette_measurement`), the rest the front face's
+    exact edges with the back edge of the distinct side face. Read as merged it gives the cube back;
+    read as the front face's own edge (gap unknown) it does not."""
+    from conftest import silhouette_measurement
+    cube = rig.cube(0.5, 8.0, height=height, yaw_deg=yaw)
+    meas = rig.measure(cube, gaps=True)
+    assert sum(b is not None for b in meas.back_sides_px) == 1  # one distinct side face
+    k = 2 if height < 0 else 3  # the side whose face is seen: top for a cube below the camera
+    sides = list(meas.sides_px)
+    sides[k] = silhouette_measurement(rig, cube).sides_px[k]
+    gaps = list(meas.side_gaps_px) + [np.nan, np.nan]
+    gaps[k] = 0.0
+    merged = dataclasses.replace(meas, sides_px=tuple(sides), side_gaps_px=tuple(gaps))
+    est = estimate_face(rig.rays, merged, method="exact", up=rig.mirror.axis)
+    assert est and centre_error(rig, est, cube) < 1e-6
+    assert est.size == pytest.approx(cube.size, rel=1e-6)
+    gaps[k] = np.nan
+    naive = estimate_face(rig.rays, dataclasses.replace(merged, side_gaps_px=tuple(gaps)),
+                          method="exact", up=rig.mirror.axis)
+    assert not naive or centre_error(rig, naive, cube) > 0.02
