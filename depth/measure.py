@@ -1606,7 +1606,7 @@ def silhouette(
         out.append(pts if gaps[side] > min_gap_px and scatter <= max_scatter_px else None)
     return Silhouette(tuple(out), np.r_[gaps, _top_bottom_gaps(image, blob_mask, outline, margin_frac,
                                                                 profile_half_width_px, min_contrast,
-                                                                min_points, channels)])
+                                                                channels)])
 
 
 def _blob_boundary(image, blob_mask, lines, axis, sign, half_width, min_contrast, channels) -> np.ndarray:
@@ -1636,7 +1636,7 @@ def _blob_boundary(image, blob_mask, lines, axis, sign, half_width, min_contrast
     return start[good] + e[good, None] * normal[good]
 
 
-def _top_bottom_gaps(image, blob_mask, outline, margin_frac, half_width, min_contrast, min_points, channels):
+def _top_bottom_gaps(image, blob_mask, outline, margin_frac, half_width, min_contrast, channels):
     """Median distance (px) from the front face's top and bottom sides outward to the blob's
     boundary, along the face's columns (less `margin_frac` of its width at each end): (2,), NaN
     where not measurable."""
