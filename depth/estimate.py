@@ -446,6 +446,15 @@ def _rms(r: np.ndarray) -> float:
     return float(np.sqrt(np.mean(r ** 2)))
 
 
+def _face_extent_px(directions, sgn, size, along, normal, px_per_m) -> np.ndarray:
+    """Per ray, how far (px) the cube face beyond a side of the front face images outward of it: the
+    move of a back vertex carried along the ray onto the front face's plane, size·(r·along)/(r·normal),
+    signed outward by `sgn`, times the pixels per metre there. > 0 where that face is seen, ≤ 0 where
+    it is hidden; not finite where the ray runs in the front face's plane."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return sgn * size * (directions @ along) / (directions @ normal) * px_per_m
+
+
 def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local: LocalXSlit,
            cube_size: float | None, up=None) -> CubeEstimate | FailedEstimate:
     """Non-central PnP of the square face (and its back vertical edges) from exact per-pixel rays.
@@ -592,9 +601,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         r = coords(p, d, c, axes, s) * weight
         r = np.where(np.isfinite(r), r, 0.0)
         if len(hid_idx):  # the image width (px) of a side face that must stay hidden, beyond its allowance
-            rh = d[hid_idx]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                ext = np.maximum(sign[sid[hid_idx]] * s * (rh @ axes[1]) / (rh @ axes[2]), 0.0) * weight[hid_idx]
+            ext = np.maximum(_face_extent_px(d[hid_idx], sign[sid[hid_idx]], s, axes[1], axes[2], weight[hid_idx]), 0.0)
             excess = np.where(np.isfinite(ext), np.maximum(ext - hid_allowed, 0.0), 0.0)
             r = np.concatenate([r, excess / SIDE_WIDTH_SIGMA_PX])
         return r
@@ -697,8 +704,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         heights = []
         for k in tb_candidates:
             m = sid == k
-            with np.errstate(divide="ignore", invalid="ignore"):
-                ext = np.maximum(sign[k] * s * (d[m] @ axes[0]) / (d[m] @ axes[2]), 0.0) * weight[m]
+            ext = np.maximum(_face_extent_px(d[m], sign[k], s, axes[0], axes[2], weight[m]), 0.0)
             heights.append(float(np.median(ext[np.isfinite(ext)])) if np.isfinite(ext).any() else 0.0)
         tops = [k for k, hk in zip(tb_candidates, heights) if hk > MERGED_TOP_PX]
         if tops:
@@ -861,6 +867,7 @@ def _side_face_width_px(rays: RayFunction, side_px: np.ndarray, est: CubeEstimat
     _, b = _face_coords(q, r, est.front_face_center, axes)
     _, b2 = _face_coords(q2, r2, est.front_face_center, axes)
     with np.errstate(divide="ignore", invalid="ignore"):
-        ext = np.sign(np.nanmedian(b)) * est.size * (r @ axes[1]) / (r @ axes[2]) / (np.abs(b2 - b) / 0.5)
+        px_per_m = 0.5 / np.abs(b2 - b)
+    ext = _face_extent_px(r, np.sign(np.nanmedian(b)), est.size, axes[1], axes[2], px_per_m)
     ext = ext[np.isfinite(ext)]
     return float(np.median(ext)) if len(ext) else 0.0
