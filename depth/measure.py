@@ -1076,6 +1076,7 @@ def _edge_offsets_encoded(srgb, points, normals, half_width, min_contrast, step=
     return (x_edge - sgn * base) * np.abs(n_ax), contrast, one_step
 
 
+_STEP_TOWARD_PX = 0.5  # a side whose points all lie farther out (or in) than this, few within reach, steps
 _ONE_STEP_TOLERANCE = 0.1  # change of the outside level a pixel farther out, as a share of the step
 _ONE_STEP_SHARE = 0.7  # share of a side's points that must show one step for the encoded area
 
@@ -1101,12 +1102,11 @@ def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing, en
         if one_step is None or one_step.mean() < _ONE_STEP_SHARE:
             e, c = _edge_offsets(linear, p, n, half_width, min_contrast)
         good = (c >= min_contrast) & (np.abs(e) <= half_width - 0.5)
-        beyond = (c >= min_contrast) & (np.abs(e) > half_width - 0.5)
+        off = (c >= min_contrast) & (np.abs(e) > _STEP_TOWARD_PX)
         if (good.sum() < min_points and (c >= min_contrast).sum() >= min_points
-                and max((beyond & (e > 0)).sum(), (beyond & (e < 0)).sum()) >= 0.8 * (c >= min_contrast).sum()):
-            # a left/right side's edge lies beyond the profile's reach all along (the mask's side is
-            # off by more than a pixel, e.g. beside a bright strip): step toward it; the next pass
-            # measures it
+                and max((off & (e > 0)).sum(), (off & (e < 0)).sum()) >= 0.8 * (c >= min_contrast).sum()):
+            # the side's edge lies at or beyond the profile's reach all along (the mask's side is off
+            # by a pixel or more, e.g. beside a bright strip): step toward it; the next pass measures it
             good = c >= min_contrast
             e = np.clip(e, -(half_width - 0.5), half_width - 0.5)
         if good.sum() < min_points:

@@ -454,6 +454,28 @@ def test_narrow_faces_are_outlined_with_few_top_and_bottom_points(width, backgro
     assert corner_errors(o, c).max() <= 0.1
 
 
+@pytest.mark.parametrize("v0, dv, top_height", [(30.5, -0.2, 0.3), (30.5, -0.2, 0.45), (30.55, -0.2, 0.6)])
+def test_a_face_mask_a_pixel_short_of_its_top_is_stepped_out_to_the_edge(v0, dv, top_height):
+    """A narrow face (10 px, seven top points) under a thin, brighter top-face strip, its mask a
+    pixel short at the top (as the detection leaves it when the strip's mixed row is not the
+    face's colour): the top edge lies at or just beyond the profile's reach, some points a hair
+    within it. The outline steps out and measures the two-tone edge, between the strip's outer
+    edge (less the overshoot of its brighter colour) and the face's own edge; the other corners
+    stay exact. (These cases were refused: too few top points within reach.)"""
+    c = FakeCube((60.3, v0), (70.5, v0 + dv), (70.8, v0 + 66.2), (60.6, v0 + 66.0), side=None,
+                 albedo=COLOURS["red"], top_height=top_height, top_shade=0.95)
+    image, _ = make_image((130, 130), [c], background="grey")
+    mask = pixel_truth(image.shape[:2], c, "face")
+    mask[np.flatnonzero(mask.any(axis=1))[0]] = False
+    o = face_outline(image, mask)
+    assert o, getattr(o, "reason", "")
+    top = o.sides[2]
+    below_face_edge = top[:, 1] - c.top(top[:, 0])  # > 0: inside the face
+    assert below_face_edge.max() <= 0.2
+    assert below_face_edge.min() >= -top_height - 0.3
+    assert corner_errors(o, c)[2:].max() <= 0.05
+
+
 # ------------------------------------------------------------------- thin neighbouring strips
 
 
