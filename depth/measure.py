@@ -12,7 +12,7 @@ because renderers and cameras mix radiance linearly across a pixel.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -126,6 +126,12 @@ class FaceOutline:
     edge_width_px : float
         Width of the narrowest side's edge ramp found by that pass (≈ 1 px or less for a sharp
         image, more for a blurred one: `blurred`); NaN where the pass did not run or found no side.
+    alternative : FaceOutline or None
+        The other reading of a side whose strip is a single off-colour pixel column or row seen at
+        one phase (a side along the pixel grid): that pixel may as well mix the face, a narrower strip
+        and the outside, so the face's edge may lie anywhere in it. The alternative keeps such sides
+        at the one-step edge, without the strip; `depth.reconstruct` estimates it where no cube fits
+        the strip reading.
     """
 
     sides: list[np.ndarray]
@@ -138,6 +144,7 @@ class FaceOutline:
     contrast: np.ndarray
     strip_px: np.ndarray = field(default_factory=lambda: np.zeros(4))
     edge_width_px: float = float("nan")
+    alternative: FaceOutline | None = None
 
     def __bool__(self) -> bool:
         return True
@@ -744,12 +751,14 @@ def face_outline(
             return result
         model = result
     strip = np.zeros(4)
+    single = np.zeros(4, dtype=bool)
     colour = linear[..., :3]
     ramp = float("nan")
+    before_strips = model
     if thin_strips:
-        model, strip, ramp = _esf_pass(colour, model, min_contrast)
+        model, strip, ramp, single = _esf_pass(colour, model, min_contrast)
     if strip.any():  # re-centre the band on the moved sides and measure them again
-        model, again, _ = _esf_pass(colour, model, min_contrast, sides=np.flatnonzero(strip > 0))
+        model, again, _, _ = _esf_pass(colour, model, min_contrast, sides=np.flatnonzero(strip > 0))
         strip = np.where(again > 0, again, strip)
     if ramp > BLURRED_RAMP_PX and blur_domain == "encoded":
         # blurred after encoding (as most software blurs): place the edges on the encoded values
@@ -762,6 +771,28 @@ def face_outline(
             if isinstance(result, FailedMeasurement):
                 break
             model = result
+    outline = _as_outline(model, origin, strip, ramp)
+    single &= strip > 0
+    if single.any():
+        # a strip of one off-colour pixel is as well a mixed pixel of the face, a narrower strip and
+        # the outside: the other reading keeps those sides where the one-step estimate put them
+        lines, quads = np.array(model[0]), np.array(model[1])
+        sides, normals = list(model[3]), list(model[4])
+        for i in np.flatnonzero(single):
+            if i < 2:
+                lines[i] = before_strips[0][i]
+            else:
+                quads[i - 2] = before_strips[1][i - 2]
+            sides[i], normals[i] = before_strips[3][i], before_strips[4][i]
+        corners = _corners(lines, quads)
+        if not isinstance(corners, FailedMeasurement):
+            alt = (lines, quads, corners, sides, normals) + tuple(model[5:])
+            outline = replace(outline, alternative=_as_outline(alt, origin, np.where(single, 0.0, strip), ramp))
+    return outline
+
+
+def _as_outline(model, origin, strip, ramp) -> FaceOutline:
+    """A refined model (crop coordinates) as a FaceOutline in image coordinates."""
     lines, quads, corners, sides, normals, rms, contrast, residuals = model
     all_res = np.concatenate(residuals)
     return FaceOutline(
@@ -1153,6 +1184,7 @@ _ESF_MAX_STRIP_PX = 3.5  # widest outer strip looked for
 _ESF_MIN_STRIP_CONTRAST = 0.03  # a strip differs from the face and the outside by this (of face − outside)
 _ESF_MIN_STRIP_PX = 0.5  # narrowest strip believed
 _ESF_DEBUG = False
+_ESF_SINGLE_PIXEL_PX = 1.2  # a strip found from one phase and narrower than this fills one pixel only
 _ESF_MIN_GAIN = 0.3  # the two-step model must remove this fraction of the one-step misfit
 
 
@@ -1273,9 +1305,10 @@ def _esf_side(linear, lines, quads, corners, i, inner, margin, min_contrast):
 def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast, use_chroma):
     """Edge offset of side i from its pooled edge-spread function, or None when not measurable.
 
-    Returns (e, w, e_one, s): the face edge's outward offset e (px) from the fitted side, the width
-    w of an outer strip (0 when one step explains the profile), the one-step edge e_one and the
-    one-step ramp width s (px; > 1 for a blurred image).
+    Returns (e, w, e_one, s, single): the face edge's outward offset e (px) from the fitted side, the
+    width w of an outer strip (0 when one step explains the profile), the one-step edge e_one, the
+    one-step ramp width s (px; > 1 for a blurred image), and whether the strip is one off-colour
+    pixel seen at a single phase (ambiguous: a mixed pixel of face, narrower strip and outside).
 
     Pixels in the band around the side are reduced to a face-ness f (projection of the colour on
     c_face − c_out, both measured per station along the side: 1 on the face, 0 outside) and the
@@ -1390,8 +1423,11 @@ def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast
         # line and it fills at least a pixel
         accept = W[g2] >= 1.0 and np.linalg.norm(rho[g2]) >= 0.03 * be2
     if accept:
-        return float(E[g2]), float(W[g2]), e_one, scale1
-    return e_one, 0.0, e_one, scale1
+        # one off-colour pixel column or row: as well a mixed pixel of the face, a narrower strip and
+        # the outside, the strip's colour unknown; the face's edge may lie anywhere in that pixel
+        single = bool(phases < 6 and W[g2] < _ESF_SINGLE_PIXEL_PX)
+        return float(E[g2]), float(W[g2]), e_one, scale1, single
+    return e_one, 0.0, e_one, scale1, False
 
 
 BLUR_EVIDENCE_MARGIN = 0.015
@@ -1489,9 +1525,10 @@ def _parabola_min(x: np.ndarray, y: np.ndarray, k: int) -> float:
 def _esf_pass(linear, model, min_contrast, margin=2.5, sides=range(4)):
     """Shift each side of a refined model to its edge found by `_esf_side`.
 
-    Returns (model, strip_px (4,), ramp_px) with the sides' lines/quadratics shifted along their normals,
-    the edge points moved by the same offsets, and the corners recomputed. Only the `sides`
-    given (indices into left, right, top, bottom) are measured."""
+    Returns (model, strip_px (4,), ramp_px, single (4,) bool) with the sides' lines/quadratics shifted
+    along their normals, the edge points moved by the same offsets, and the corners recomputed; `single`
+    marks strips of one off-colour pixel seen at one phase (`_esf_side_mode`). Only the `sides` given
+    (indices into left, right, top, bottom) are measured."""
     which = [int(i) for i in sides]
     lines, quads, corners, sides, normals, rms, contrast, residuals = model
     lines, quads = lines.copy(), quads.copy()
@@ -1510,10 +1547,11 @@ def _esf_pass(linear, model, min_contrast, margin=2.5, sides=range(4)):
     # a blurred image (edges wider than a pixel on every side) hides a thin strip's steps in
     # the blur's tails: leave the sides to the per-point estimate
     ramp = float(min(r[3] for r in found.values())) if found else float("nan")
+    single = np.zeros(4, dtype=bool)
     if ramp > BLURRED_RAMP_PX:
-        return model, np.zeros(4), ramp
+        return model, np.zeros(4), ramp, single
     for i, res in found.items():
-        e, ws, e_one, _ = res
+        e, ws, e_one, _, single[i] = res
         if ws <= 0:  # one step: the per-point area estimate is already exact
             continue
         strip[i] = ws
@@ -1529,8 +1567,8 @@ def _esf_pass(linear, model, min_contrast, margin=2.5, sides=range(4)):
         new_sides[i] = sides[i] + e * normals[i]
     new_corners = _corners(lines, quads)
     if isinstance(new_corners, FailedMeasurement):
-        return model, np.zeros(4), ramp
-    return (lines, quads, new_corners, new_sides, normals, rms, contrast, residuals), strip, ramp
+        return model, np.zeros(4), ramp, np.zeros(4, dtype=bool)
+    return (lines, quads, new_corners, new_sides, normals, rms, contrast, residuals), strip, ramp, single
 
 
 @dataclass(frozen=True)

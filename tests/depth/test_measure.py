@@ -502,8 +502,32 @@ def test_thin_strip_beside_a_side_does_not_move_the_face_edge(strip, background,
     right = o.sides[1]
     assert np.abs(np.median(right[:, 0] - c.right(right[:, 1]))) <= 0.1
     assert o.strip_px[0] == 0.0 and o.strip_px[2] == 0.0 and o.strip_px[3] == 0.0
+    assert o.alternative is None  # a leaning side samples every phase: one reading
     if strip < 2.0:  # wider strips are split off by the detection's face mask
         assert o.strip_px[1] == pytest.approx(strip, abs=0.15)
+
+
+def test_a_one_pixel_strip_beside_a_side_on_the_pixel_grid_gets_a_second_reading():
+    """A side face exactly one pixel column wide beside a vertical left side that lies on a pixel
+    boundary: every row samples the same phase, so the column could as well be a pixel mixing the
+    face, a narrower strip and the outside. The outline reads the strip (the face's corners exact)
+    and offers the other reading, the one-step edge inside that column, without the strip."""
+    c = FakeCube((60.5, 30.6), (69.8, 30.6), (69.8, 110.4), (60.5, 110.4), side="left", side_width=1.0,
+                 side_shade=0.95, albedo=(0.62, 0.62, 0.25), front_shade=0.7)
+    image, mirror = make_image((140, 130), [c], background="checker")
+    (d,) = match(detect_cubes(image, mirror), [c])
+    o = face_outline(image, d.front_face_mask)
+    assert o, getattr(o, "reason", "")
+    assert o.strip_px[0] == pytest.approx(1.0, abs=0.2)
+    assert np.abs(o.corners_px[[0, 3], 0] - c.corners()[[0, 3], 0]).max() <= 0.05
+    alt = o.alternative
+    assert alt is not None and alt.strip_px[0] == 0.0
+    # > 0: the edge put out in the strip; the one-step area counts the strip, brighter than the face
+    # by 0.95 / 0.7, as that much face: at most 1.36 px out
+    left_shift = c.corners()[[0, 3], 0] - alt.corners_px[[0, 3], 0]
+    assert np.all((left_shift > 0.3) & (left_shift < 0.95 / 0.7 + 0.05))
+    # the other sides are those of the first reading
+    np.testing.assert_allclose(alt.corners_px[[1, 2]], o.corners_px[[1, 2]], atol=1e-9)
 
 
 # ------------------------------------------------------------------------------ JPEG: luma
