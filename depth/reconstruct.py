@@ -121,6 +121,19 @@ def despeckled(image: np.ndarray) -> np.ndarray:
     return cv2.medianBlur(u8, DESPECKLE_PX).astype(np.float64) / 255.0
 
 
+def _measurement(img, blob_mask, outline, face_px, channels, compressed):
+    """What `estimate_face` takes from an outline: its edges, the silhouette beside it, the face's pixels."""
+    from depth.measure import silhouette
+
+    sil = silhouette(img, blob_mask, outline, channels=channels)
+    return FaceMeasurement(tuple(outline.sides), outline.corners_px, face_px, outline.edge_noise_px,
+                           back_sides_px=sil.sides, side_gaps_px=tuple(sil.gaps_px), strip_px=tuple(outline.strip_px),
+                           edge_bias_px=EDGE_BIAS_PX_COMPRESSED if compressed
+                           else EDGE_BIAS_PX_BLURRED if outline.blurred else EDGE_BIAS_PX,
+                           no_side_face_gap_px=NO_SIDE_FACE_GAP_PX if compressed or outline.blurred
+                           else NO_SIDE_FACE_GAP_PX_SHARP)
+
+
 def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: float | None = None,
                 progress=None, compressed: bool = False, blur_domain: str = "auto") -> Reconstruction:
     """Find and estimate every cube in a mirror image.
@@ -164,7 +177,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     detections = detect_cubes(despeckled(img) if compressed else img, mask)
     thin_strips = not compressed  # JPEG ringing beside an edge mimics a thin strip
     cubes, refused, measured, blurred = [], [], [], []
-    alternatives = {}  # index into measured: (measurement, outline) of a side's other reading
+    alternatives = {}  # index into measured: (blob mask, face pixels, channels) of a face with two readings
     domain, any_blurred = blur_domain, False
     total = max(len(detections), 1)
     for i, det in enumerate(detections):
@@ -198,20 +211,9 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             blurred.append((len(measured), det, face_mask, channels))
         ys, xs = np.nonzero(face_mask)
         face_px = np.column_stack([xs, ys]).astype(np.float64)
-
-        def measurement(outline):
-            sil = silhouette(img, det.mask, outline, channels=channels)
-            return FaceMeasurement(tuple(outline.sides), outline.corners_px, face_px, outline.edge_noise_px,
-                                   back_sides_px=sil.sides, side_gaps_px=tuple(sil.gaps_px),
-                                   strip_px=tuple(outline.strip_px),
-                                   edge_bias_px=EDGE_BIAS_PX_COMPRESSED if compressed
-                                   else EDGE_BIAS_PX_BLURRED if outline.blurred else EDGE_BIAS_PX,
-                                   no_side_face_gap_px=NO_SIDE_FACE_GAP_PX if compressed or outline.blurred
-                                   else NO_SIDE_FACE_GAP_PX_SHARP)
-        meas = measurement(outline)
-        if outline.alternative is not None:  # a one-pixel strip's other reading, estimated below too
-            alternatives[len(measured)] = (measurement(outline.alternative), outline.alternative)
-        measured.append((meas, bbox, outline))
+        if outline.alternative is not None:  # a one-pixel strip's other reading, for a refused cube
+            alternatives[len(measured)] = (det.mask, face_px, channels)
+        measured.append((_measurement(img, det.mask, outline, face_px, channels, compressed), bbox, outline))
         if progress is not None:
             progress(i + 1, total)
     if blurred:
@@ -233,12 +235,14 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     else:
         up = getattr(mirror, "axis", None)
         estimates = [estimate_face(rays, m, method=method, cube_size=cube_size, up=up) for m, _, _ in measured]
-        for k, (alt_meas, alt_outline) in alternatives.items():
+        for k, (blob, face_px, channels) in alternatives.items():
             # a one-pixel strip beside a side along the pixel grid is read as a side face; where no
             # cube fits that reading, the other: a pixel mixing the face, a narrower strip and the
             # outside (choosing by the lower misfit instead moved Mitsuba s01/0 from 3.9 to 9.9 %)
             if estimates[k]:
                 continue
+            alt_outline = measured[k][2].alternative
+            alt_meas = _measurement(img, blob, alt_outline, face_px, channels, compressed)
             alt = estimate_face(rays, alt_meas, method=method, cube_size=cube_size, up=up)
             if alt:
                 estimates[k] = alt
