@@ -203,6 +203,51 @@ def test_exact_recovers_a_turned_cube_whose_side_face_merges_with_the_front(rig,
     assert not naive or centre_error(rig, naive, cube) > 0.02
 
 
+def _side_face_widths_px(rig, est):
+    """How far (px) each side face of the estimated cube images beyond its front face (> 0: shown),
+    {"L": …, "R": …}, from the exact reflection of the estimated cube's front and back vertical edges."""
+    from raytrace.truth import reflection_pixels
+
+    n = est.normal / np.linalg.norm(est.normal)
+    v = np.array([0.0, 1.0, 0.0])
+    h = np.cross(n, v)
+    centre = reflection_pixels(rig.camera, rig.mirror, est.front_face_center[None])[0][0]
+    widths = {}
+    for side in (-1.0, 1.0):
+        front = est.front_face_center + side * h * est.size / 2 + np.outer(np.linspace(-0.3, 0.3, 7) * est.size, v)
+        pf = reflection_pixels(rig.camera, rig.mirror, front)[0]
+        pb = reflection_pixels(rig.camera, rig.mirror, front - n * est.size)[0]
+        outward = np.sign(pf[:, 0].mean() - centre[0])
+        widths["L" if outward < 0 else "R"] = float(np.median(outward * (pb[:, 0] - pf[:, 0])))
+    return widths
+
+
+@pytest.mark.parametrize("yaw", [20.0, -20.0, 10.0])
+def test_exact_keeps_a_side_face_hidden_opposite_a_distinct_one(rig, yaw):
+    """Told that one side shows a distinct side face 1 px wide (its back edge) and the other side none,
+    `exact` returns a pose that images the claimed face about that wide and the other no wider than the
+    allowed slack: checked independently by reflecting the estimated cube's back edges. The true
+    measurement (the opposite side face shown) gives the cube back exactly."""
+    from depth.estimate import SIDE_WIDTH_SLACK_PX
+
+    cube = rig.cube(0.5, 5.0, yaw_deg=yaw)
+    true = rig.measure(cube, gaps=True)
+    shown = 0 if true.back_sides_px[0] is not None else 1
+    assert true.back_sides_px[1 - shown] is None and true.side_gaps_px[shown] > 1.5
+    est = estimate_face(rig.rays, true, up=rig.mirror.axis)
+    assert est and centre_error(rig, est, cube) < 1e-6
+    claimed = 1 - shown  # the claim: a 1 px side face here, none beside the truly shown one
+    backs, gaps = [None, None], [0.0, 0.0]
+    backs[claimed] = true.sides_px[claimed] + np.array([1.0 if claimed == 1 else -1.0, 0.0])
+    gaps[claimed] = 1.0
+    lied = dataclasses.replace(true, back_sides_px=tuple(backs), side_gaps_px=tuple(gaps))
+    est = estimate_face(rig.rays, lied, up=rig.mirror.axis)
+    assert est
+    widths = _side_face_widths_px(rig, est)
+    assert widths["LR"[claimed]] == pytest.approx(1.0, abs=0.2)
+    assert widths["LR"[shown]] <= SIDE_WIDTH_SLACK_PX + 0.1
+
+
 def test_exact_refuses_edges_that_no_square_explains(rig):
     """Edge points no square can pass through (a side zigzagging by ±2.5 px, as along a ragged
     border): refused, with the misfit."""
