@@ -127,11 +127,11 @@ class FaceOutline:
         Width of the narrowest side's edge ramp found by that pass (≈ 1 px or less for a sharp
         image, more for a blurred one: `blurred`); NaN where the pass did not run or found no side.
     alternative : FaceOutline or None
-        The other reading of a side whose strip is a single off-colour pixel column or row seen at
-        one phase (a side along the pixel grid): that pixel may as well mix the face, a narrower strip
-        and the outside, so the face's edge may lie anywhere in it. The alternative keeps such sides
-        at the one-step edge, without the strip; `depth.reconstruct` estimates it where no cube fits
-        the strip reading.
+        The other reading of a side whose profile is a single off-colour pixel column or row seen at
+        one phase (a side along the pixel grid): that pixel may be a strip filling it or mix the
+        face, a narrower strip and the outside, so the face's edge may lie anywhere in it. Read as a
+        strip, the alternative keeps the side at the one-step edge without it; read as mixed, it
+        moves the side to the strip's inner edge. `depth.reconstruct` estimates both.
     """
 
     sides: list[np.ndarray]
@@ -751,12 +751,12 @@ def face_outline(
             return result
         model = result
     strip = np.zeros(4)
-    single = np.zeros(4, dtype=bool)
+    others = {}
     colour = linear[..., :3]
     ramp = float("nan")
     before_strips = model
     if thin_strips:
-        model, strip, ramp, single = _esf_pass(colour, model, min_contrast)
+        model, strip, ramp, others = _esf_pass(colour, model, min_contrast)
     if strip.any():  # re-centre the band on the moved sides and measure them again
         model, again, _, _ = _esf_pass(colour, model, min_contrast, sides=np.flatnonzero(strip > 0))
         strip = np.where(again > 0, again, strip)
@@ -772,22 +772,29 @@ def face_outline(
                 break
             model = result
     outline = _as_outline(model, origin, strip, ramp)
-    single &= strip > 0
-    if single.any():
-        # a strip of one off-colour pixel is as well a mixed pixel of the face, a narrower strip and
-        # the outside: the other reading keeps those sides where the one-step estimate put them
+    if others:
+        # one off-colour pixel is as well a strip filling it as a mixed pixel of the face, a
+        # narrower strip and the outside: the other reading keeps a strip's side where the one-step
+        # estimate put it, and moves a side read as mixed to the strip's inner edge
         lines, quads = np.array(model[0]), np.array(model[1])
         sides, normals = list(model[3]), list(model[4])
-        for i in np.flatnonzero(single):
-            if i < 2:
-                lines[i] = before_strips[0][i]
+        alt_strip = strip.copy()
+        for i, (e, w) in others.items():
+            if strip[i] > 0:
+                if i < 2:
+                    lines[i] = before_strips[0][i]
+                else:
+                    quads[i - 2] = before_strips[1][i - 2]
+                sides[i], normals[i] = before_strips[3][i], before_strips[4][i]
+                alt_strip[i] = 0.0
             else:
-                quads[i - 2] = before_strips[1][i - 2]
-            sides[i], normals[i] = before_strips[3][i], before_strips[4][i]
+                _shift_side(lines, quads, model[2], i, e)
+                sides[i] = sides[i] + e * normals[i]
+                alt_strip[i] = w
         corners = _corners(lines, quads)
         if not isinstance(corners, FailedMeasurement):
             alt = (lines, quads, corners, sides, normals) + tuple(model[5:])
-            outline = replace(outline, alternative=_as_outline(alt, origin, np.where(single, 0.0, strip), ramp))
+            outline = replace(outline, alternative=_as_outline(alt, origin, alt_strip, ramp))
     return outline
 
 
@@ -1293,22 +1300,25 @@ _ESF_SCALES = np.arange(0.6, 1.81, 0.2)  # ramp widths tried (px): sharper or bl
 
 def _esf_side(linear, lines, quads, corners, i, inner, margin, min_contrast):
     """`_esf_side_mode` on chroma (blind to a grey background's texture), then on the full
-    colour (which sees a strip of the face's chroma but another brightness against grey)."""
+    colour (which sees a strip of the face's chroma but another brightness against grey) where
+    chroma finds no strip."""
     res = _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast, True)
     if res is None or res[1] == 0.0:
         full = _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast, False)
-        if full is not None and (res is None or full[1] > 0.0):
-            return full
+        if full is not None and (res is None or full[1] > 0.0 or (full[4] is not None and res[4] is None)):
+            return full  # a strip, or an off-colour pixel that may be one
     return res
 
 
 def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast, use_chroma):
     """Edge offset of side i from its pooled edge-spread function, or None when not measurable.
 
-    Returns (e, w, e_one, s, single): the face edge's outward offset e (px) from the fitted side, the
+    Returns (e, w, e_one, s, other): the face edge's outward offset e (px) from the fitted side, the
     width w of an outer strip (0 when one step explains the profile), the one-step edge e_one, the
-    one-step ramp width s (px; > 1 for a blurred image), and whether the strip is one off-colour
-    pixel seen at a single phase (ambiguous: a mixed pixel of face, narrower strip and outside).
+    one-step ramp width s (px; > 1 for a blurred image), and `other`, None or the (e, w) of the side's
+    other reading where its profile is one off-colour pixel seen at a single phase: that pixel is as
+    well a strip filling it as a mixed pixel of the face, a narrower strip and the outside, and a
+    fit of one sample per pixel cannot tell them apart (its two-step misfit ties across w ≲ 1 px).
 
     Pixels in the band around the side are reduced to a face-ness f (projection of the colour on
     c_face − c_out, both measured per station along the side: 1 on the face, 0 outside) and the
@@ -1417,17 +1427,22 @@ def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast
               E[g2], W[g2], "noise", noise_var, "strip", np.round(strip_lvl, 3), "face", round(al2 + be2, 3), "ph", phases)
     accept = (gain > max(_ESF_MIN_GAIN * sse1, 40.0 * noise_var) and contrast >= _ESF_MIN_STRIP_CONTRAST * be2
               and be2 > 0.5 and W[g2] >= _ESF_MIN_STRIP_PX and E[g2] <= e_one - 0.15)
+    other = None
     if accept and phases < 6:
         # one sample per pixel across the side: a mixed pixel and a strip of a colour between the
         # face's and the outside's look alike; believe a strip only when its colour is off that
         # line and it fills at least a pixel
-        accept = W[g2] >= 1.0 and np.linalg.norm(rho[g2]) >= 0.03 * be2
+        off_colour = np.linalg.norm(rho[g2]) >= 0.03 * be2
+        accept = W[g2] >= 1.0 and off_colour
+        if off_colour and not accept:  # an off-colour pixel read as mixed: a strip is the other reading
+            other = (float(E[g2]), float(W[g2]))
     if accept:
         # one off-colour pixel column or row: as well a mixed pixel of the face, a narrower strip and
         # the outside, the strip's colour unknown; the face's edge may lie anywhere in that pixel
-        single = bool(phases < 6 and W[g2] < _ESF_SINGLE_PIXEL_PX)
-        return float(E[g2]), float(W[g2]), e_one, scale1, single
-    return e_one, 0.0, e_one, scale1, False
+        if phases < 6 and W[g2] < _ESF_SINGLE_PIXEL_PX:
+            other = (e_one, 0.0)
+        return float(E[g2]), float(W[g2]), e_one, scale1, other
+    return e_one, 0.0, e_one, scale1, other
 
 
 BLUR_EVIDENCE_MARGIN = 0.015
@@ -1525,10 +1540,11 @@ def _parabola_min(x: np.ndarray, y: np.ndarray, k: int) -> float:
 def _esf_pass(linear, model, min_contrast, margin=2.5, sides=range(4)):
     """Shift each side of a refined model to its edge found by `_esf_side`.
 
-    Returns (model, strip_px (4,), ramp_px, single (4,) bool) with the sides' lines/quadratics shifted
-    along their normals, the edge points moved by the same offsets, and the corners recomputed; `single`
-    marks strips of one off-colour pixel seen at one phase (`_esf_side_mode`). Only the `sides` given
-    (indices into left, right, top, bottom) are measured."""
+    Returns (model, strip_px (4,), ramp_px, others) with the sides' lines/quadratics shifted along
+    their normals, the edge points moved by the same offsets, and the corners recomputed; `others`
+    maps a side whose profile is one off-colour pixel seen at one phase to its other reading's
+    (offset, strip width) (`_esf_side_mode`). Only the `sides` given (indices into left, right, top,
+    bottom) are measured."""
     which = [int(i) for i in sides]
     lines, quads, corners, sides, normals, rms, contrast, residuals = model
     lines, quads = lines.copy(), quads.copy()
@@ -1547,28 +1563,35 @@ def _esf_pass(linear, model, min_contrast, margin=2.5, sides=range(4)):
     # a blurred image (edges wider than a pixel on every side) hides a thin strip's steps in
     # the blur's tails: leave the sides to the per-point estimate
     ramp = float(min(r[3] for r in found.values())) if found else float("nan")
-    single = np.zeros(4, dtype=bool)
+    others = {}
     if ramp > BLURRED_RAMP_PX:
-        return model, np.zeros(4), ramp, single
+        return model, np.zeros(4), ramp, others
     for i, res in found.items():
-        e, ws, e_one, _, single[i] = res
+        e, ws, e_one, _, other = res
+        if other is not None:
+            others[i] = other
         if ws <= 0:  # one step: the per-point area estimate is already exact
             continue
         strip[i] = ws
-        if i < 2:
-            a = lines[i, 0]
-            sign = -1.0 if i == 0 else 1.0
-            lines[i, 1] += sign * e * np.hypot(1.0, a)
-        else:
-            qa, qb, _ = quads[i - 2]
-            sign = -1.0 if i == 2 else 1.0
-            um = 0.5 * (corners[0, 0] + corners[1, 0]) if i == 2 else 0.5 * (corners[2, 0] + corners[3, 0])
-            quads[i - 2, 2] += sign * e * np.hypot(1.0, 2 * qa * um + qb)
+        _shift_side(lines, quads, corners, i, e)
         new_sides[i] = sides[i] + e * normals[i]
     new_corners = _corners(lines, quads)
     if isinstance(new_corners, FailedMeasurement):
-        return model, np.zeros(4), ramp, np.zeros(4, dtype=bool)
-    return (lines, quads, new_corners, new_sides, normals, rms, contrast, residuals), strip, ramp, single
+        return model, np.zeros(4), ramp, {}
+    return (lines, quads, new_corners, new_sides, normals, rms, contrast, residuals), strip, ramp, others
+
+
+def _shift_side(lines, quads, corners, i, e):
+    """Move side i's line or quadratic (in place) by e px along its outward normal."""
+    if i < 2:
+        a = lines[i, 0]
+        sign = -1.0 if i == 0 else 1.0
+        lines[i, 1] += sign * e * np.hypot(1.0, a)
+    else:
+        qa, qb, _ = quads[i - 2]
+        sign = -1.0 if i == 2 else 1.0
+        um = 0.5 * (corners[0, 0] + corners[1, 0]) if i == 2 else 0.5 * (corners[2, 0] + corners[3, 0])
+        quads[i - 2, 2] += sign * e * np.hypot(1.0, 2 * qa * um + qb)
 
 
 @dataclass(frozen=True)

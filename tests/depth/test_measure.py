@@ -530,6 +530,26 @@ def test_a_one_pixel_strip_beside_a_side_on_the_pixel_grid_gets_a_second_reading
     np.testing.assert_allclose(alt.corners_px[[1, 2]], o.corners_px[[1, 2]], atol=1e-9)
 
 
+@pytest.mark.parametrize("side_width", [1.0, 0.6])
+def test_an_off_colour_pixel_read_as_mixed_gets_the_strip_as_its_second_reading(side_width):
+    """A bright side face beside a left side on a pixel boundary, against grey: every row samples
+    one phase, and the fit of one sample per pixel reads the off-colour column as a pixel mixing
+    face and outside (the edge put out into it by its brightness). Its other reading is a strip
+    filling that column, the face's edge at the column's inner boundary, which here is the truth."""
+    c = FakeCube((60.5, 30.6), (69.8, 30.6), (69.8, 110.4), (60.5, 110.4), side="left", side_width=side_width,
+                 side_shade=0.95, albedo=(0.62, 0.62, 0.25), front_shade=0.7)
+    image, mirror = make_image((140, 130), [c], background="grey")
+    (d,) = match(detect_cubes(image, mirror), [c])
+    o = face_outline(image, d.front_face_mask)
+    assert o, getattr(o, "reason", "")
+    assert o.strip_px[0] == 0.0
+    assert np.all(c.corners()[[0, 3], 0] - o.corners_px[[0, 3], 0] > 0.5)  # read as mixed: out by > 0.5 px
+    alt = o.alternative
+    assert alt is not None and alt.strip_px[0] == pytest.approx(1.0, abs=0.1)
+    assert np.abs(alt.corners_px[[0, 3], 0] - c.corners()[[0, 3], 0]).max() <= 0.1
+    np.testing.assert_allclose(alt.corners_px[[1, 2]], o.corners_px[[1, 2]], atol=1e-9)
+
+
 # ------------------------------------------------------------------------------ JPEG: luma
 
 
