@@ -845,22 +845,6 @@ def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact
     return est if all(abs(w - gaps[k]) < gaps[k] for w, k in zip(widths, thin)) else contour
 
 
-def with_other_reading(est: CubeEstimate, other: CubeEstimate) -> CubeEstimate:
-    """`est` with its σ widened to hold a second, equally likely reading of the same face.
-
-    Where the image allows two outlines (`depth.measure.FaceOutline.alternative`) and `other` is
-    the cube fitted to the second, either may be the true one: the expected squared error of `est`
-    is its own variance plus half the squared distance to `other`, per key ('z', 'size', 'center').
-    `est` itself (centre, size, pose) is unchanged.
-    """
-    d = {"z": abs(est.z - other.z), "size": abs(est.size - other.size),
-         "center": float(np.linalg.norm(np.asarray(est.center) - np.asarray(other.center)))}
-    std = dict(est.std)
-    for key, delta in d.items():
-        std[key] = float(np.sqrt(est.std[key] ** 2 + 0.5 * delta**2))
-    return replace(est, std=std)
-
-
 def _vertical(local: LocalXSlit, up) -> np.ndarray:
     """The scene's vertical (unit): `up`, signed like the local axis-parallel slit, or that slit."""
     slit = local.axes[0] if local.vertical == 0 else local.axes[1]

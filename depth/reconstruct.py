@@ -16,7 +16,7 @@ import numpy as np
 from depth.errors import DepthError
 from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED, METHODS, NO_SIDE_FACE_GAP_PX,
                             NO_SIDE_FACE_GAP_PX_SHARP, CubeEstimate,
-                            FaceMeasurement, estimate_face, estimate_faces_shape_prior, with_other_reading)
+                            FaceMeasurement, estimate_face, estimate_faces_shape_prior)
 
 __all__ = ["ALL_METHODS", "CubeResult", "Refusal", "Reconstruction", "reconstruct", "check_image"]
 
@@ -211,7 +211,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             blurred.append((len(measured), det, face_mask, channels))
         ys, xs = np.nonzero(face_mask)
         face_px = np.column_stack([xs, ys]).astype(np.float64)
-        if outline.alternative is not None:  # a one-pixel strip's other reading
+        if outline.alternative is not None:  # a one-pixel strip's other reading, for a refused cube
             alternatives[len(measured)] = (det.mask, face_px, channels)
         measured.append((_measurement(img, det.mask, outline, face_px, channels, compressed), bbox, outline))
         if progress is not None:
@@ -236,19 +236,15 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         up = getattr(mirror, "axis", None)
         estimates = [estimate_face(rays, m, method=method, cube_size=cube_size, up=up) for m, _, _ in measured]
         for k, (blob, face_px, channels) in alternatives.items():
-            # one off-colour pixel beside a side along the pixel grid is a strip filling it or a pixel
-            # mixing the face, a narrower strip and the outside; the fit reads a strip where it spans
-            # at least the pixel. Where no cube fits that reading, the other; where both fit, the
-            # first with σ holding both (neither the misfit nor the fitted width tells them apart:
-            # choosing by the lower misfit moved Mitsuba s01/0 from 3.9 to 9.9 %)
+            # a one-pixel strip beside a side along the pixel grid is read as a side face; where no
+            # cube fits that reading, the other: a pixel mixing the face, a narrower strip and the
+            # outside (choosing by the lower misfit instead moved Mitsuba s01/0 from 3.9 to 9.9 %)
+            if estimates[k]:
+                continue
             alt_outline = measured[k][2].alternative
             alt_meas = _measurement(img, blob, alt_outline, face_px, channels, compressed)
             alt = estimate_face(rays, alt_meas, method=method, cube_size=cube_size, up=up)
-            if not alt:
-                continue
-            if estimates[k]:
-                estimates[k] = with_other_reading(estimates[k], alt)
-            else:
+            if alt:
                 estimates[k] = alt
                 measured[k] = (alt_meas, measured[k][1], alt_outline)
     for est, (meas, bbox, outline) in zip(estimates, measured):

@@ -6,12 +6,7 @@ import numpy as np
 import pytest
 
 from depth.errors import DepthError
-from depth.estimate import (
-    NO_SIDE_FACE_GAP_PX,
-    NO_SIDE_FACE_GAP_PX_SHARP,
-    estimate_face,
-    with_other_reading,
-)
+from depth.estimate import NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, estimate_face
 
 
 def centre_error(rig, est, cube):
@@ -305,33 +300,3 @@ def test_a_merged_top_or_bottom_face_beside_a_distinct_side_face(rig, height, ya
     naive = estimate_face(rig.rays, dataclasses.replace(merged, side_gaps_px=tuple(gaps)),
                           method="exact", up=rig.mirror.axis)
     assert not naive or centre_error(rig, naive, cube) > 0.02
-
-
-def test_a_second_reading_widens_sigma_to_the_rms_error_of_either_reading(rig):
-    """Two outlines of one face, the second with its left side a pixel further out (the two readings
-    of an off-colour pixel column). If either cube is the truth, each with its own Gaussian error, the
-    rms error of reporting the first, sampled here, is the σ `with_other_reading` gives it; the
-    estimate itself is unchanged."""
-    cube = rig.cube(0.5, 10.0, yaw_deg=8.0)
-    meas = rig.measure(cube, noise_px=0.05, side_offset_px=0.1, seed=3)
-    est = estimate_face(rig.rays, meas, up=rig.mirror.axis)
-    sides = list(meas.sides_px)
-    sides[0] = sides[0] - np.array([1.0, 0.0])
-    other = estimate_face(rig.rays, dataclasses.replace(meas, sides_px=tuple(sides)), up=rig.mirror.axis)
-    assert est and other
-    wide = with_other_reading(est, other)
-    np.testing.assert_array_equal(wide.center, est.center)
-    assert (wide.size, wide.z) == (est.size, est.z)
-    assert with_other_reading(est, est).std == est.std
-
-    rng = np.random.default_rng(0)
-    n = 400_000
-    pick = rng.random(n) < 0.5
-    for key, value in (("z", lambda e: np.array([e.z])), ("size", lambda e: np.array([e.size])),
-                       ("center", lambda e: np.asarray(e.center))):
-        a, b = value(est), value(other)
-        dim = len(a)
-        truth = np.where(pick[:, None], a, b) + rng.normal(0.0, est.std[key] / np.sqrt(dim), (n, dim))
-        rms = np.sqrt(np.mean(np.sum((truth - a) ** 2, axis=1)))
-        assert np.linalg.norm(a - b) > est.std[key]  # the second reading matters here
-        assert wide.std[key] == pytest.approx(rms, rel=0.01), key
