@@ -131,7 +131,8 @@ class FaceOutline:
         one phase (a side along the pixel grid): that pixel may be a strip filling it or mix the
         face, a narrower strip and the outside, so the face's edge may lie anywhere in it. Read as a
         strip, the alternative keeps the side at the one-step edge without it; read as mixed, it
-        moves the side to the strip's inner edge. `depth.reconstruct` estimates both.
+        moves the side to the strip's inner edge. `depth.reconstruct` estimates it where no cube
+        fits the first reading.
     """
 
     sides: list[np.ndarray]

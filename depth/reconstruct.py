@@ -236,9 +236,10 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         up = getattr(mirror, "axis", None)
         estimates = [estimate_face(rays, m, method=method, cube_size=cube_size, up=up) for m, _, _ in measured]
         for k, (blob, face_px, channels) in alternatives.items():
-            # a one-pixel strip beside a side along the pixel grid is read as a side face; where no
-            # cube fits that reading, the other: a pixel mixing the face, a narrower strip and the
-            # outside (choosing by the lower misfit instead moved Mitsuba s01/0 from 3.9 to 9.9 %)
+            # one off-colour pixel beside a side along the pixel grid is read as a strip (a side face)
+            # where the fit spans the pixel, else as a pixel mixing the face, a narrower strip and the
+            # outside; where no cube fits that reading, the other (choosing by the lower misfit
+            # instead moved Mitsuba s01/0 from 3.9 to 9.9 %)
             if estimates[k]:
                 continue
             alt_outline = measured[k][2].alternative
