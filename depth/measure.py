@@ -775,23 +775,19 @@ def face_outline(
     outline = _as_outline(model, origin, strip, ramp)
     if others:
         # one off-colour pixel is as well a strip filling it as a mixed pixel of the face, a
-        # narrower strip and the outside: the other reading keeps a strip's side where the one-step
-        # estimate put it, and moves a side read as mixed to the strip's inner edge
+        # narrower strip and the outside: the other reading moves each such side from where the
+        # per-point estimate put it (offsets measured from there by the first pass)
         lines, quads = np.array(model[0]), np.array(model[1])
         sides, normals = list(model[3]), list(model[4])
         alt_strip = strip.copy()
         for i, (e, w) in others.items():
-            if strip[i] > 0:
-                if i < 2:
-                    lines[i] = before_strips[0][i]
-                else:
-                    quads[i - 2] = before_strips[1][i - 2]
-                sides[i], normals[i] = before_strips[3][i], before_strips[4][i]
-                alt_strip[i] = 0.0
+            if i < 2:
+                lines[i] = before_strips[0][i]
             else:
-                _shift_side(lines, quads, model[2], i, e)
-                sides[i] = sides[i] + e * normals[i]
-                alt_strip[i] = w
+                quads[i - 2] = before_strips[1][i - 2]
+            _shift_side(lines, quads, model[2], i, e)
+            sides[i], normals[i] = before_strips[3][i] + e * before_strips[4][i], before_strips[4][i]
+            alt_strip[i] = w
         corners = _corners(lines, quads)
         if not isinstance(corners, FailedMeasurement):
             alt = (lines, quads, corners, sides, normals) + tuple(model[5:])
@@ -1320,6 +1316,7 @@ def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast
     other reading where its profile is one off-colour pixel seen at a single phase: that pixel is as
     well a strip filling it as a mixed pixel of the face, a narrower strip and the outside, and a
     fit of one sample per pixel cannot tell them apart (its two-step misfit ties across w ≲ 1 px).
+    Read as a strip, the other reading is (0, 0): the side where the per-point estimate put it.
 
     Pixels in the band around the side are reduced to a face-ness f (projection of the colour on
     c_face − c_out, both measured per station along the side: 1 on the face, 0 outside) and the
@@ -1441,7 +1438,7 @@ def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast
         # one off-colour pixel column or row: as well a mixed pixel of the face, a narrower strip and
         # the outside, the strip's colour unknown; the face's edge may lie anywhere in that pixel
         if phases < 6 and W[g2] < _ESF_SINGLE_PIXEL_PX:
-            other = (e_one, 0.0)
+            other = (0.0, 0.0)  # one step: the per-point area estimate stands (as for w = 0 below)
         return float(E[g2]), float(W[g2]), e_one, scale1, other
     return e_one, 0.0, e_one, scale1, other
 
