@@ -723,10 +723,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         if best is None:
             return None
         weight = pixel_weights(best)
-        out = solve(False, [best])
-        if out is not None:
-            weight = pixel_weights(out[0])
-            out = solve(False, [out[0]]) or out
+        out = refined(False, [best])
         if out is None or np.divide(*costs([out[0], x_best])) > PROFILE_GAIN:
             weight = keep
             return None
