@@ -678,15 +678,14 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         weight = pixel_weights(best[0])
         return solve(free, [best[0]])
 
-    def costs(xs):
-        """Soft-l1 costs of poses xs with the pixel scales re-measured at each, over the edge points
-        every one of them can scale (a point's scale can vanish at one pose and not at another)."""
+    def costs(poses):
+        """Soft-l1 costs of (x, pixel weights at x) pairs, each at its own pixel scales, over the edge
+        points every one of them can scale (a point's scale can vanish at one pose and not at another)."""
         nonlocal weight
         keep = weight
-        ws = [pixel_weights(x) for x in xs]
-        usable = np.logical_and.reduce([w > 0 for w in ws])
+        usable = np.logical_and.reduce([w > 0 for _, w in poses])
         out = []
-        for x, w in zip(xs, ws):
+        for x, w in poses:
             weight = np.where(usable, w, 0.0)
             r = resid(x)
             out.append(float(np.sum(np.sqrt(1.0 + r ** 2) - 1.0)))
@@ -699,32 +698,34 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         fits better, the fit is finished from there. None when none does."""
         nonlocal weight
         keep = weight
+        fitted = (x_best, pixel_weights(x_best))
         best, gain = None, 1.0
         for direction in (-1.0, 1.0):
-            x = x_best.copy()
+            x, w = fitted
             prev = 1.0
             for k in range(1, int(PROFILE_SPAN / PROFILE_STEP) + 1):
                 t = x_best[0] + direction * k * PROFILE_STEP
                 if abs(t) > lim:
                     break
-                weight = pixel_weights(x)
+                weight = w  # the scales of the previous turn's pose
 
                 def at_turn(z, turn=t):
                     return resid(np.r_[turn, 0.0, 0.0, z])
                 x = np.r_[t, 0.0, 0.0, least_squares(at_turn, x[3:7], **dict(opts, max_nfev=PLACE_NFEV)).x]
-                c, c0 = costs([x, x_best])
+                w = pixel_weights(x)
+                c, c0 = costs([(x, w), fitted])
                 ratio = c / max(c0, 1e-12)
                 if ratio < gain:
-                    best, gain = x, ratio
+                    best, gain = (x, w), ratio
                 if ratio > PROFILE_STOP and ratio > prev:
                     break
                 prev = ratio
         weight = keep
         if best is None:
             return None
-        weight = pixel_weights(best)
-        out = refined(False, [best])
-        if out is None or np.divide(*costs([out[0], x_best])) > PROFILE_GAIN:
+        weight = best[1]
+        out = refined(False, [best[0]])
+        if out is None or np.divide(*costs([(out[0], pixel_weights(out[0])), fitted])) > PROFILE_GAIN:
             weight = keep
             return None
         return out
