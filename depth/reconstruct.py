@@ -9,7 +9,7 @@ reason, rather than guessed.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -157,7 +157,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     """
     from raytrace.truth import mirror_mask, mirror_rays
     from depth.measure import (BLUR_DOMAINS, FailedMeasurement, blur_domain_verdict, detect_cubes, extended_to_blob,
-                               face_outline, silhouette)
+                               face_outline)
 
     if method not in ALL_METHODS:
         raise DepthError(f"method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
@@ -226,10 +226,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
                                        blur_domain="encoded")
                 if not outline:  # cannot happen after a linear outline succeeded; keep that one
                     continue
-                sil = silhouette(img, det.mask, outline, channels=channels)
-                measured[k] = (replace(meas, sides_px=tuple(outline.sides), corners_px=outline.corners_px,
-                                       edge_noise_px=outline.edge_noise_px, back_sides_px=sil.sides,
-                                       side_gaps_px=tuple(sil.gaps_px)), bbox, outline)
+                measured[k] = (_measurement(img, det.mask, outline, meas.face_px, channels, compressed), bbox, outline)
     if method == "shape_prior":
         estimates = estimate_faces_shape_prior(rays, [m for m, _, _ in measured])
     else:
