@@ -723,12 +723,24 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         weight = keep
         if best is None:
             return None
-        weight = best[1]
-        out = refined(False, [best[0]])
-        if out is None or np.divide(*costs([(out[0], pixel_weights(out[0])), fitted])) > PROFILE_GAIN:
+        # Finished at its own pixel scales, re-measured at every step: with scales held at one pose
+        # and re-measured between solves, the fit can slide back to the turn it started from.
+        usable = (best[1] > 0) & (fitted[1] > 0)
+
+        def own(y):
+            nonlocal weight
+            x = np.zeros(7)
+            x[upright] = y
+            weight = np.where(usable, pixel_weights(x), 0.0)
+            return resid(x)
+        sol = least_squares(own, best[0][upright], bounds=([-lim] + [-np.inf] * 4, [lim] + [np.inf] * 4), **opts)
+        x = np.zeros(7)
+        x[upright] = sol.x
+        weight = pixel_weights(x)
+        if sol.status < 0 or np.divide(*costs([(x, weight), fitted])) > PROFILE_GAIN:
             weight = keep
             return None
-        return out
+        return x, sol
 
     def fit():
         """Stage 1 and (when needed) stage 2: (x, covariance) or None."""

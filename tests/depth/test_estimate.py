@@ -332,3 +332,38 @@ def test_a_turned_cube_seen_only_as_a_silhouette_is_found_at_its_turn(yaw):
     depth = float(mirror.distance_to_axis(cube.center[None])[0])
     assert np.linalg.norm(found.estimate.center - cube.center) / depth < 0.05
     assert abs(found.depth - depth) < 3.0 * found.depth_std
+
+
+@pytest.mark.parametrize("resolution, focal, camera_z, radius, height, size, centre, yaw, colour, grey", [
+    ((1600, 1200), 2043.084, (-0.03375, 0.3586), 0.08683, 0.41094, 0.0737, (0.34781, 0.06726, 0.57357), -166.5816,
+     (0.0954, 0.7819, 0.5566), 0.637),
+    ((1024, 768), 1895.698, (-0.05057, 0.78655), 0.12497, 0.68814, 0.0415, (0.88853, 0.0287, 0.65093), -138.9079,
+     (0.6687, 0.096, 0.8243), 0.621),
+])
+def test_a_silhouette_whose_best_turn_lies_far_from_the_fitted_one(resolution, focal, camera_z, radius, height, size,
+                                                                   centre, yaw, colour, grey):
+    """Two cubes of an unseen scene (bench scenes seed 777) under a uniform light, rendered by our ray
+    tracer: the side faces merge with the front face, and the turn that fits the silhouette best at
+    its own pixel scales lies 6–15° from where the starting turns settle. The profile finds it, but a
+    fit finished with the pixel scales held fixed between solves slid back to the first turn and the
+    profile's turn was dropped (29.9 % and 28.6 % off, depth 26 σ and 6 σ off). Finished at its own
+    pixel scales: 3.2 % and 4.8 %. The centre must be within 6 % and the depth within 3 σ."""
+    from scipy.spatial.transform import Rotation
+
+    from depth.reconstruct import reconstruct
+    from raytrace.camera import PinholeCamera
+    from raytrace.mirror import CylinderMirror
+    from raytrace.render import linear_to_srgb8, render
+    from raytrace.scene import Cube, DirectionalLight, Scene
+
+    camera = PinholeCamera.from_look_at(resolution, (focal, focal), None, (0.0, *camera_z), (0, 0, 0), (0, 1, 0))
+    mirror = CylinderMirror(radius, height, (0, 0, 0), (0, 1, 0))
+    cube = Cube(size, np.array(centre), Rotation.from_euler("y", yaw, degrees=True).as_matrix(), color=colour)
+    scene = Scene(mirror=mirror, objects=(cube,), light=DirectionalLight(intensity=0.0, ambient=1.0),
+                  background=(grey,) * 3)
+    rec = reconstruct(linear_to_srgb8(render(scene, camera, spp=16, seed=0).image), camera, mirror)
+    assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
+    found = rec.cubes[0]
+    depth = float(mirror.distance_to_axis(cube.center[None])[0])
+    assert np.linalg.norm(found.estimate.center - cube.center) / depth < 0.06
+    assert abs(found.depth - depth) < 3.0 * found.depth_std
