@@ -302,6 +302,20 @@ def test_a_merged_top_or_bottom_face_beside_a_distinct_side_face(rig, height, ya
     assert not naive or centre_error(rig, naive, cube) > 0.02
 
 
+def _found_under_uniform_light(camera, mirror, cube, grey):
+    """`reconstruct` on our ray tracer's render of one cube under a uniform light (every face lit
+    alike): the one cube found, and the distance of the cube's centre to the mirror axis."""
+    from depth.reconstruct import reconstruct
+    from raytrace.render import linear_to_srgb8, render
+    from raytrace.scene import DirectionalLight, Scene
+
+    scene = Scene(mirror=mirror, objects=(cube,), light=DirectionalLight(intensity=0.0, ambient=1.0),
+                  background=(grey,) * 3)
+    rec = reconstruct(linear_to_srgb8(render(scene, camera, spp=16, seed=0).image), camera, mirror)
+    assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
+    return rec.cubes[0], float(mirror.distance_to_axis(cube.center[None])[0])
+
+
 @pytest.mark.parametrize("yaw", [182.0, 186.7])
 def test_a_turned_cube_seen_only_as_a_silhouette_is_found_at_its_turn(yaw):
     """Under a uniform light every face of a cube looks alike, so a turned cube's side face merges
@@ -312,35 +326,27 @@ def test_a_turned_cube_seen_only_as_a_silhouette_is_found_at_its_turn(yaw):
     poses settled at a turn 6–11° off: 26 % and 36 %.)"""
     from scipy.spatial.transform import Rotation
 
-    from depth.reconstruct import reconstruct
     from raytrace.camera import PinholeCamera
     from raytrace.mirror import CylinderMirror
-    from raytrace.render import linear_to_srgb8, render
-    from raytrace.scene import Cube, DirectionalLight, Scene
+    from raytrace.scene import Cube
 
     camera = PinholeCamera.from_look_at((1600, 1200), (2043.084, 2043.084), None, (0.0, -0.03375, 0.3586),
                                         (0, 0, 0), (0, 1, 0))
     mirror = CylinderMirror(0.08683, 0.41094, (0, 0, 0), (0, 1, 0))
     cube = Cube(0.0469, np.array([-0.07969, -0.03045, 0.72958]), Rotation.from_euler("y", yaw, degrees=True).as_matrix(),
                 color=(0.8807, 0.5536, 0.1778))
-    scene = Scene(mirror=mirror, objects=(cube,), light=DirectionalLight(intensity=0.0, ambient=1.0),
-                  background=(0.637, 0.637, 0.637))
-    image = linear_to_srgb8(render(scene, camera, spp=16, seed=0).image)
-    rec = reconstruct(image, camera, mirror)
-    assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
-    found = rec.cubes[0]
-    depth = float(mirror.distance_to_axis(cube.center[None])[0])
+    found, depth = _found_under_uniform_light(camera, mirror, cube, 0.637)
     assert np.linalg.norm(found.estimate.center - cube.center) / depth < 0.05
     assert abs(found.depth - depth) < 3.0 * found.depth_std
 
 
-@pytest.mark.parametrize("resolution, focal, camera_z, radius, height, size, centre, yaw, colour, grey", [
+@pytest.mark.parametrize("resolution, focal, camera_yz, radius, height, size, centre, yaw, colour, grey", [
     ((1600, 1200), 2043.084, (-0.03375, 0.3586), 0.08683, 0.41094, 0.0737, (0.34781, 0.06726, 0.57357), -166.5816,
      (0.0954, 0.7819, 0.5566), 0.637),
     ((1024, 768), 1895.698, (-0.05057, 0.78655), 0.12497, 0.68814, 0.0415, (0.88853, 0.0287, 0.65093), -138.9079,
      (0.6687, 0.096, 0.8243), 0.621),
 ])
-def test_a_silhouette_whose_best_turn_lies_far_from_the_fitted_one(resolution, focal, camera_z, radius, height, size,
+def test_a_silhouette_whose_best_turn_lies_far_from_the_fitted_one(resolution, focal, camera_yz, radius, height, size,
                                                                    centre, yaw, colour, grey):
     """Two cubes of an unseen scene (bench scenes seed 777) under a uniform light, rendered by our ray
     tracer: the side faces merge with the front face, and the turn that fits the silhouette best at
@@ -350,20 +356,13 @@ def test_a_silhouette_whose_best_turn_lies_far_from_the_fitted_one(resolution, f
     pixel scales: 3.2 % and 4.8 %. The centre must be within 6 % and the depth within 3 σ."""
     from scipy.spatial.transform import Rotation
 
-    from depth.reconstruct import reconstruct
     from raytrace.camera import PinholeCamera
     from raytrace.mirror import CylinderMirror
-    from raytrace.render import linear_to_srgb8, render
-    from raytrace.scene import Cube, DirectionalLight, Scene
+    from raytrace.scene import Cube
 
-    camera = PinholeCamera.from_look_at(resolution, (focal, focal), None, (0.0, *camera_z), (0, 0, 0), (0, 1, 0))
+    camera = PinholeCamera.from_look_at(resolution, (focal, focal), None, (0.0, *camera_yz), (0, 0, 0), (0, 1, 0))
     mirror = CylinderMirror(radius, height, (0, 0, 0), (0, 1, 0))
     cube = Cube(size, np.array(centre), Rotation.from_euler("y", yaw, degrees=True).as_matrix(), color=colour)
-    scene = Scene(mirror=mirror, objects=(cube,), light=DirectionalLight(intensity=0.0, ambient=1.0),
-                  background=(grey,) * 3)
-    rec = reconstruct(linear_to_srgb8(render(scene, camera, spp=16, seed=0).image), camera, mirror)
-    assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
-    found = rec.cubes[0]
-    depth = float(mirror.distance_to_axis(cube.center[None])[0])
+    found, depth = _found_under_uniform_light(camera, mirror, cube, grey)
     assert np.linalg.norm(found.estimate.center - cube.center) / depth < 0.06
     assert abs(found.depth - depth) < 3.0 * found.depth_std
