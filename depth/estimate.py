@@ -635,6 +635,13 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     lim = np.deg2rad(54.7)
     opts = dict(method="trf", loss="soft_l1", f_scale=1.0, x_scale="jac", max_nfev=300)
     upright = np.array([0, 3, 4, 5, 6])  # turn about the vertical, centre, log size
+    upright_bounds = ([-lim] + [-np.inf] * 4, [lim] + [np.inf] * 4)
+
+    def full(y):
+        """The pose vector of upright parameters y (no tilt)."""
+        x = np.zeros(7)
+        x[upright] = y
+        return x
 
     def solve(free: bool, starts, max_nfev: int = 300):
         best = None
@@ -645,9 +652,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
                 x = sol.x
             else:
                 def fun(y):
-                    x = np.zeros(7)
-                    x[upright] = y
-                    return resid(x)
+                    return resid(full(y))
                 y0 = x0[upright]
                 if len(starts) > 1 and len(merged) > 1:
                     # ddar read the contour as the face, so its centre and size suit no turn that shows
@@ -658,10 +663,8 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
                     y0 = np.r_[y0[0], least_squares(at_turn, y0[1:], bounds=([-np.inf] * 3 + [-LOG_SIZE_RANGE],
                                                                              [np.inf] * 3 + [LOG_SIZE_RANGE]),
                                                     **dict(opts, max_nfev=PLACE_NFEV)).x]
-                sol = least_squares(fun, y0, bounds=([-lim] + [-np.inf] * 4, [lim] + [np.inf] * 4),
-                                    **dict(opts, max_nfev=max_nfev))
-                x = np.zeros(7)
-                x[upright] = sol.x
+                sol = least_squares(fun, y0, bounds=upright_bounds, **dict(opts, max_nfev=max_nfev))
+                x = full(sol.x)
             if sol.status >= 0 and (best is None or sol.cost < best[1].cost):  # 0: stopped at max_nfev
                 best = (x, sol)
         return best
@@ -729,13 +732,11 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
 
         def own(y):
             nonlocal weight
-            x = np.zeros(7)
-            x[upright] = y
+            x = full(y)
             weight = np.where(usable, pixel_weights(x), 0.0)
             return resid(x)
-        sol = least_squares(own, best[0][upright], bounds=([-lim] + [-np.inf] * 4, [lim] + [np.inf] * 4), **opts)
-        x = np.zeros(7)
-        x[upright] = sol.x
+        sol = least_squares(own, best[0][upright], bounds=upright_bounds, **opts)
+        x = full(sol.x)
         weight = pixel_weights(x)
         if sol.status < 0 or np.divide(*costs([(x, weight), fitted])) > PROFILE_GAIN:
             weight = keep
