@@ -458,6 +458,12 @@ def _rms(r: np.ndarray) -> float:
     return float(np.sqrt(np.mean(r ** 2)))
 
 
+def _side_gaps(meas: FaceMeasurement) -> np.ndarray:
+    """The silhouette gaps beside the left, right, top and bottom sides (4,), NaN where not measured
+    (a measurement may carry only the left and right ones)."""
+    return np.r_[np.asarray(meas.side_gaps_px, dtype=np.float64), np.full(2, np.nan)][:4]
+
+
 def _face_extent_px(directions, sgn, size, along, normal, px_per_m) -> np.ndarray:
     """Per ray, how far (px) the cube face beyond a side of the front face images outward of it: the
     move of a back vertex carried along the ray onto the front face's plane, size·(r·along)/(r·normal),
@@ -507,7 +513,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     # Left/right sides beside which the silhouette shows no distinct side face: either none is seen
     # or it is seen but as bright as the front face, merged with it. Both are fitted as the cube's
     # outer contour (`contour`).
-    gaps = np.r_[np.asarray(meas.side_gaps_px, dtype=np.float64), np.full(2, np.nan)][:4]
+    gaps = _side_gaps(meas)
     # Where the other side shows a distinct side face, the cube is turned that way and this side's
     # face is hidden: its edge is the front face's own.
     no_back = all(sp is None for sp in meas.back_sides_px)
@@ -914,7 +920,7 @@ def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact
     if method == "ddar":
         return start
     est = _exact(rays, meas, start, local, cube_size, up)
-    gaps = np.r_[np.asarray(meas.side_gaps_px, dtype=np.float64), np.full(2, np.nan)][:2]
+    gaps = _side_gaps(meas)
     thin = [k for k in (0, 1) if np.isfinite(gaps[k]) and meas.no_side_face_gap_px < gaps[k] <= NO_SIDE_FACE_GAP_PX]
     if not thin:
         return est
