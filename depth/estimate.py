@@ -76,6 +76,11 @@ MERGED_TOP_PX = 1.0
 """A top or bottom face that the fitted pose shows taller than this (px) where the image shows no
 distinct face beside that side is taken as merged with the front face, and `exact` fits again."""
 
+SILHOUETTE_MARGIN_PX = 5
+"""With the blob known (`FaceMeasurement.blob_mask`), the merged and the unmerged reading of a top or
+bottom face are told apart by how many pixels each pose's silhouette disagrees with the blob more than
+one pixel deep (`_silhouette_disagreement`) when the two differ by at least this many; else by the edges."""
+
 SIDE_WIDTH_SLACK_PX = 0.5
 """Where the other side shows a distinct side face, `exact` penalises a pose whose side face on this
 side would image wider than the measured silhouette gap plus this (that face is hidden)."""
@@ -143,6 +148,8 @@ class FaceMeasurement:
         (`depth.measure.FaceOutline.strip_px`): such a face is distinct, not merged.
     no_side_face_gap_px : float, the largest gap read as "no distinct side face" (`NO_SIDE_FACE_GAP_PX`;
         `NO_SIDE_FACE_GAP_PX_SHARP` for sharp faces of uncompressed images)
+    blob_mask : (H, W) bool or None, every pixel of the cube (`depth.measure.CubeDetection.mask`): the
+        silhouette `exact` checks a merged top or bottom face against (`SILHOUETTE_MARGIN_PX`)
     """
 
     sides_px: tuple
@@ -154,6 +161,7 @@ class FaceMeasurement:
     side_gaps_px: tuple = (float("nan"), float("nan"))
     strip_px: tuple = (0.0, 0.0, 0.0, 0.0)
     no_side_face_gap_px: float = NO_SIDE_FACE_GAP_PX
+    blob_mask: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -464,6 +472,34 @@ def _side_gaps(meas: FaceMeasurement) -> np.ndarray:
     return np.r_[np.asarray(meas.side_gaps_px, dtype=np.float64), np.full(2, np.nan)][:4]
 
 
+def _silhouette_disagreement(rays: RayFunction, blob_mask: np.ndarray) -> Callable:
+    """A function of a cube (centre, rows of its axes, edge length) giving the number of pixels where its
+    silhouette (the pixels whose reflected ray meets it) and the blob disagree more than one pixel deep
+    (their symmetric difference eroded by a 3×3 square: a pixel at the blob's edge is part cube, part
+    not, whichever pose is right). Pixels within half the blob's size of its bounding box are tested."""
+    from scipy.ndimage import binary_erosion
+
+    ys, xs = np.nonzero(blob_mask)
+    h, w = np.ptp(ys) + 1, np.ptp(xs) + 1
+    rows = np.arange(max(ys.min() - h // 2, 0), min(ys.max() + 1 + h // 2, blob_mask.shape[0]))
+    cols = np.arange(max(xs.min() - w // 2, 0), min(xs.max() + 1 + w // 2, blob_mask.shape[1]))
+    yy, xx = np.meshgrid(rows, cols, indexing="ij")
+    origins, directions = rays(np.column_stack([xx.ravel(), yy.ravel()]).astype(np.float64))
+    seen = np.all(np.isfinite(origins), axis=1) & np.all(np.isfinite(directions), axis=1)
+    inside = blob_mask[yy.ravel(), xx.ravel()]
+    origins, directions = np.where(seen[:, None], origins, 0.0), np.where(seen[:, None], directions, 1.0)
+
+    def disagreement(centre, axes, size):
+        o, r = (origins - centre) @ axes.T, directions @ axes.T  # in the cube's frame
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1, t2 = (-size / 2 - o) / r, (size / 2 - o) / r
+        near = np.nanmax(np.minimum(t1, t2), axis=1)
+        far = np.nanmin(np.maximum(t1, t2), axis=1)
+        hit = seen & (far >= np.maximum(near, 0.0))
+        return int(binary_erosion((hit != inside).reshape(yy.shape), np.ones((3, 3), dtype=bool)).sum())
+    return disagreement
+
+
 def _face_extent_px(directions, sgn, size, along, normal, px_per_m) -> np.ndarray:
     """Per ray, how far (px) the cube face beyond a side of the front face images outward of it: the
     move of a back vertex carried along the ray onto the front face's plane, size·(r·along)/(r·normal),
@@ -477,8 +513,9 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
            cube_size: float | None, up=None) -> CubeEstimate | FailedEstimate:
     """Non-central PnP of the square face (and its back vertical edges) from exact per-pixel rays.
 
-    Residuals are pixel-like: each is a metric offset in the face (or side) plane divided by the
-    metres that one pixel spans there, re-measured at the current pose. Stage 1 fits an upright
+    Residuals are pixel-like: each is a metric offset in the face (or side) plane divided by its
+    change per pixel in the image (the norm of its gradient, re-measured at the current pose), i.e.
+    the point's distance from the modelled edge in pixels, across that edge. Stage 1 fits an upright
     face (turned about `up` only) from several starting turns (when the outline is the outer
     contour, the face is first placed at each turn: ddar's centre and size fit none of them);
     stage 2 frees the tilt only when the upright face misfits the edges.
@@ -532,8 +569,11 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     if np.any(sign[:4] == 0) or sign[0] == sign[1] or sign[2] == sign[3]:
         return FailedEstimate("exact", "the sides do not bound a quadrilateral around the face centre")
     sign[4:] = sign[:2]
+    # Half a pixel across each edge (along the row for left/right and back sides, the column for top
+    # and bottom) and half a pixel along it: the residual's image gradient (`pixel_weights`).
     step = np.where(is_lr[:, None] | is_back[:, None], [[0.5, 0.0]], [[0.0, 0.5]])
     p2, d2 = rays(pix + step)
+    p3, d3 = rays(pix + step[:, ::-1])
 
     def unpack(x):
         c = c0 + x[3:6] * scale
@@ -547,9 +587,11 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     # A top or bottom side with no gap to the silhouette and no thin strip of another face beside
     # it: that face is hidden or merged (see `fit`). A distinct side face does not rule out a merged
     # top or bottom face: a sun from the side lights a side face differently from the front face, while
-    # the top and bottom faces may still take the same sky light as the front face.
+    # the top and bottom faces may still take the same sky light as the front face. The gap allowed is
+    # the wider one even for sharp faces (a merged bottom face's far edge left a 0.33 px gap along its
+    # curve): the merged reading is only tried, and kept where it explains the outline no worse.
     tb_candidates = [k for k in (2, 3) if np.isfinite(gaps[k])
-                     and gaps[k] <= meas.no_side_face_gap_px and not meas.strip_px[k] > 0]
+                     and gaps[k] <= NO_SIDE_FACE_GAP_PX and not meas.strip_px[k] > 0]
     front_idx = np.flatnonzero(sid < 4)
 
     def face_pairs(faces):
@@ -602,10 +644,15 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         return np.where(np.isfinite(extent), measured - sign[sid[front_idx]] * extent, front)
 
     def pixel_weights(x):
-        """1 / (metres per pixel) across each edge at pose x; 0 where a pixel says nothing."""
+        """1 / |image gradient| (metres per pixel) of each point's residual at pose x; 0 where a pixel
+        says nothing. A residual times its weight is then the point's distance (px) from the modelled
+        edge across that edge (first order), not along the row or column it was measured on: where the
+        outline of merged faces runs steeply to that line (the slanted edge of a merged top face near a
+        corner), the distance along the line is many pixels for a fraction of one across."""
         rot, c, s = unpack(x)
         axes = _square_axes(rot, base)
-        m = np.abs(coords(p2, d2, c, axes, s) - coords(p, d, c, axes, s)) / 0.5
+        here = coords(p, d, c, axes, s)
+        m = np.hypot(coords(p2, d2, c, axes, s) - here, coords(p3, d3, c, axes, s) - here) / 0.5
         ok = np.isfinite(m) & (m > 0) & (m < 2.0 * s)
         return np.where(ok, 1.0 / np.where(ok, m, 1.0), 0.0)
 
@@ -800,14 +847,28 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         if tops:
             # The merged reading stands only when it fits the edges no worse. A pose that is off
             # elsewhere can also show that face (a little over a pixel), and the merged outline then
-            # drags the pose further off to make room for a face that is not there.
+            # drags the pose further off to make room for a face that is not there. But the edge points
+            # that tell the readings apart are the few left near the corners, where the outline of the
+            # merged faces kinks, and they can favour either; so where the two poses' silhouettes
+            # disagree with the blob by clearly different amounts (a front face read as tall as the
+            # outline shows its top face where the blob has none), the silhouette decides.
             rms_before = _rms(resid(result[0])[:len(sid)])
             before = (result, merged, weight)
             merged = merged + [(_TOPS[sign[k] > 0], 0, sign[k]) for k in tops]
             pairs, pair_axis, pair_sign = face_pairs(merged)
             weight = weight_start
             result = fit()
-            if result is None or _rms(resid(result[0])[:len(sid)]) > rms_before:
+            keep = result is not None and _rms(resid(result[0])[:len(sid)]) <= rms_before
+            if result is not None and meas.blob_mask is not None:
+                off = _silhouette_disagreement(rays, meas.blob_mask)
+                gross = []
+                for x_pose in (before[0][0], result[0]):
+                    rot, c, s = unpack(x_pose)
+                    axes = _square_axes(rot, base)
+                    gross.append(off(c - axes[2] * s / 2.0, axes, s))
+                if abs(gross[0] - gross[1]) >= SILHOUETTE_MARGIN_PX:
+                    keep = gross[1] < gross[0]
+            if not keep:
                 result, merged, weight = before
                 pairs, pair_axis, pair_sign = face_pairs(merged)
     if result is None:

@@ -131,7 +131,7 @@ def _measurement(img, blob_mask, outline, face_px, channels, compressed):
                            edge_bias_px=EDGE_BIAS_PX_COMPRESSED if compressed
                            else EDGE_BIAS_PX_BLURRED if outline.blurred else EDGE_BIAS_PX,
                            no_side_face_gap_px=NO_SIDE_FACE_GAP_PX if compressed or outline.blurred
-                           else NO_SIDE_FACE_GAP_PX_SHARP)
+                           else NO_SIDE_FACE_GAP_PX_SHARP, blob_mask=blob_mask)
 
 
 def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: float | None = None,
