@@ -99,14 +99,6 @@ def _bbox(mask: np.ndarray) -> tuple:
     return (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1)
 
 
-MERGED_OUTLINE_MAX_RMS_PX = 0.15
-"""A face mask grown to the blob's outline across a side without contrast (`depth.measure.extended_to_blob`)
-is kept only when its top and bottom stay single smooth curves (rms of the points about the fitted curve
-up to this). A cube turned so that a side face lit like the front face shows beside it gives their
-union, whose top and bottom kink where the two faces meet: the outline cannot carry that kink, and
-the estimate came out 30 % off, so such a face is refused. On the reconstruct bench the grown outlines
-of single faces had rms 0.04–0.11 px, those of turned merged faces 0.18–0.44 px."""
-
 DESPECKLE_PX = 5
 """Median window for detecting cubes in JPEG images (their faces are then outlined on the image
 itself). On the reconstruct bench's JPEG images it brought the measured front-face corners from
@@ -156,8 +148,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         says what was used.
     """
     from raytrace.truth import mirror_mask, mirror_rays
-    from depth.measure import (BLUR_DOMAINS, FailedMeasurement, blur_domain_verdict, detect_cubes, extended_to_blob,
-                               face_outline)
+    from depth.measure import BLUR_DOMAINS, blur_domain_verdict, detect_cubes, extended_to_blob, face_outline
 
     if method not in ALL_METHODS:
         raise DepthError(f"method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
@@ -195,14 +186,14 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         grown = set()
         while not outline and outline.no_contrast_side is not None and outline.no_contrast_side not in grown:
             # a side with no contrast at all was cut inside one uniform region: the outline there is
-            # the blob's (`extended_to_blob`), which `exact` fits as the cube's outer contour
+            # the blob's (`extended_to_blob`), which `exact` fits as the cube's outer contour. A side face
+            # lit like the front face and merged with it makes their top and bottom kink where they meet;
+            # the edge points follow the kink (only the side's one curve does not), and `exact`'s outline
+            # of the merged faces has it. (Such outlines, rms 0.18–0.44 px about one curve, were refused
+            # while the estimate of them came out 30 % off.)
             grown.add(outline.no_contrast_side)
             face_mask = extended_to_blob(face_mask, det.mask, outline.no_contrast_side)
             outline = face_outline(img, face_mask, thin_strips=thin_strips, channels=channels, blur_domain="linear")
-            if outline and outline.side_rms_px[2:].max() > MERGED_OUTLINE_MAX_RMS_PX:
-                outline = FailedMeasurement(
-                    f"a side face lit like the front face merges with it, and their top or bottom edges "
-                    f"kink where they meet (rms {outline.side_rms_px[2:].max():.2f} px about one curve)")
         if not outline:
             refused.append(Refusal(bbox, f"face outline: {outline.reason}"))
             continue
