@@ -204,7 +204,8 @@ def _cmd_reconstruct(args) -> int:
     written = rc.write_outputs(result, json_path, args.overlay, overlay)
     rc.print_table(Console(width=None if sys.stdout.isatty() else 120), result, truth)
     if not rec.cubes:
-        print("no cube found" if not rec.refused else "no cube could be estimated")
+        print("no cube found (cubes are found by their colour, or, on a uniform background, as regions of "
+              "another colour than it)" if not rec.refused else "no cube could be estimated")
     for p in written:
         print(p)
     return 0

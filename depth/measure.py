@@ -237,6 +237,49 @@ def _chroma_hue_value(rgb: np.ndarray):
     return chroma, hue, mx
 
 
+def _achromatic_pixels(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarray, min_area: int,
+                       background_share: float = 0.5, ring_share: float = 0.9) -> np.ndarray:
+    """Pixels of grey, white or black objects: regions of another colour than a uniform background.
+
+    The background is the median colour of the mirror's pixels outside the coloured blobs, kept only
+    where at least `background_share` of them lie within its noise band (the largest channel
+    difference up to `band` = max(0.02, 4 × its median over the pixels within 0.05 of the background,
+    about 5.6 σ of Gaussian noise)). Pixels that differ from it by more
+    are grown by hysteresis (seeds beyond twice the band); a region is an object only where the ring
+    of pixels 1–2 px around it is background (at least `ring_share` of it): a cell of a checkered
+    ground borders other cells. Regions within 3 px of a coloured blob are left out: there they are a
+    coloured cube's dark or washed-out face, not another object.
+    """
+    rest = search & ~coloured
+    none = np.zeros_like(search)
+    if rest.sum() < min_area:
+        return none
+    background = np.median(rgb[rest], axis=0)
+    dist = np.abs(rgb - background).max(axis=-1)
+    close = rest & (dist <= 0.05)  # the background's own pixels, for its noise
+    if close.sum() < min_area:
+        return none
+    band = max(0.02, 4.0 * float(np.median(dist[close])))
+    near = dist <= band
+    if np.mean(near[rest]) < background_share:
+        return none
+    weak = rest & ~near
+    n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(weak.astype(np.uint8), connectivity=8)
+    keep = np.zeros(n_lab, dtype=bool)
+    keep[np.unique(labels[weak & (dist > 2.0 * band)])] = True
+    near_coloured = cv2.dilate(coloured.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
+    keep[np.unique(labels[near_coloured & weak])] = False
+    keep[0] = False
+    for lab in np.flatnonzero(keep):
+        x, y, w, h = stats[lab, :4]
+        y0, x0 = max(y - 2, 0), max(x - 2, 0)
+        sl = (slice(y0, y + h + 2), slice(x0, x + w + 2))
+        comp = labels[sl] == lab
+        ring = cv2.dilate(comp.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool) & ~comp & search[sl]
+        keep[lab] = bool(ring.any()) and np.mean(near[sl][ring]) >= ring_share
+    return keep[labels]
+
+
 def _circular_smooth(hist: np.ndarray, sigma: float) -> np.ndarray:
     return ndimage.gaussian_filter1d(hist.astype(np.float64), sigma, mode="wrap")
 
@@ -280,12 +323,14 @@ def detect_cubes(
     min_face_contrast: float = 0.03,
     edge_margin_px: int = 2,
 ) -> list[CubeDetection]:
-    """Find coloured cubes reflected in the mirror and separate their front faces.
+    """Find cubes reflected in the mirror and separate their front faces.
 
     Coloured pixels (chroma = max − min of sRGB above `min_chroma`, grown by hysteresis
     from seeds above `seed_chroma`) inside `mirror_mask` are grouped into connected blobs;
     a blob holding several distinct hues (touching cubes of different colours) is split
-    by hue. Each blob's faces are separated by brightness (modes of the histogram of the
+    by hue. Grey, white or black cubes are found where the mirror shows a uniform background,
+    as regions of another colour than it (`_achromatic_pixels`); on a textured background
+    (a checkered ground) only coloured cubes are found. Each blob's faces are separated by brightness (modes of the histogram of the
     sRGB value max(R, G, B)); the largest connected region of one brightness is the front
     face.
 
@@ -349,6 +394,8 @@ def detect_cubes(
     seeded[0] = False
     candidates = seeded[labels]
 
+    grey = _achromatic_pixels(rgb, search, candidates, min_area)
+
     # Split blobs by hue; collect every coloured fragment for the occlusion test.
     n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(
         candidates.astype(np.uint8), connectivity=8
@@ -380,6 +427,16 @@ def detect_cubes(
             next_id += 1
             if piece.sum() >= min_area:
                 blob_masks.append((piece, (y, x)))
+
+    # Grey, white or black objects (found only on a uniform background): one blob each.
+    n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(grey.astype(np.uint8), connectivity=8)
+    for lab in range(1, n_lab):
+        x, y, w, h, area = stats[lab]
+        piece = labels[y : y + h, x : x + w] == lab
+        fragments[y : y + h, x : x + w][piece] = next_id
+        next_id += 1
+        if area >= min_area:
+            blob_masks.append((piece, (y, x)))
 
     detections = []
     for local, (y, x) in blob_masks:

@@ -6,6 +6,7 @@ brighter top strip), painted at 8× resolution in linear RGB, box-downsampled (t
 anti-aliasing of a camera or renderer), sRGB-encoded and quantised to 8 bits.
 """
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -213,6 +214,38 @@ def test_recall_and_no_false_positives_on_random_colourful_scenes(seed):
     assert len(detections) == len(cubes)
     for d in match(detections, cubes):
         assert d.usable, d.reason
+
+
+
+@pytest.mark.parametrize("albedos", [
+    [(0.8, 0.8, 0.8), (0.8, 0.8, 0.8), (0.8, 0.8, 0.8)],  # the setup file's default colour
+    [(0.95, 0.95, 0.95), (0.05, 0.05, 0.05), (0.45, 0.35, 0.28)],  # white, black, a dull brown
+    [(0.8, 0.8, 0.8), COLOURS["green"], (0.05, 0.05, 0.05)],  # grey and black beside a coloured one
+])
+def test_grey_white_and_black_cubes_are_found_on_a_uniform_background(albedos):
+    """Cubes without colour (chroma under the coloured pass's threshold) on a uniform background:
+    each is found once, usable, its front face separated from its side strip."""
+    cubes = [dataclasses.replace(c, albedo=a) for c, a in zip(three_cubes(), albedos)]
+    image, mirror = make_image((200, 240), cubes, background="grey", noise=2 / 255)
+    detections = detect_cubes(image, mirror)
+    assert len(detections) == len(cubes)
+    for d, c in zip(match(detections, cubes), cubes):
+        assert d.usable, d.reason
+        face = pixel_truth(image.shape[:2], c, "face")
+        iou = (d.front_face_mask & face).sum() / (d.front_face_mask | face).sum()
+        assert iou > 0.9
+
+
+def test_grey_cubes_are_not_looked_for_on_a_checkered_background():
+    """On a textured background (the checker of a ground plane) regions of another grey than the
+    background are not objects: grey cubes are not found, and nothing is invented, while a coloured
+    cube among them still is."""
+    cubes = [dataclasses.replace(c, albedo=a) for c, a in
+             zip(three_cubes(), [(0.8, 0.8, 0.8), COLOURS["green"], (0.05, 0.05, 0.05)])]
+    image, mirror = make_image((200, 240), cubes, background="checker")
+    detections = detect_cubes(image, mirror)
+    assert len(detections) == 1
+    assert match(detections, cubes[1:2])[0].usable
 
 
 def test_front_face_is_separated_from_side_and_top_strips():
