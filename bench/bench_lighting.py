@@ -8,7 +8,9 @@ Mitsuba 3 (`scalar_rgb`, 16 spp, Gaussian pixel filter) under three lights:
 - ``sky-only``: a uniform environment and no sun. Every face of a cube then receives the same
   light, so front, side and top faces look alike and only the cube's outline is left: the worst
   case for telling the front face from the others;
-- ``sun-low-side``: a low sun from the side, weak sky.
+- ``sun-low-side``: a low sun from the side, weak sky;
+- ``sun-front grey``: the first light again, the cubes painted white, grey and black in turn
+  (`GREYS`): found only by their difference from the uniform sky seen in the mirror.
 
 and runs `depth.reconstruct` (`exact`) on each image. Per light it prints recall, false positives,
 the median / 90th percentile / max of the centre error ‖ĉ − c‖ / (distance of c to the axis), the
@@ -28,6 +30,15 @@ LIGHTS = {  # sun travel direction, sun irradiance, sky radiance
     "sun-low-side": ((1.0, -0.3, 0.1), 2.5, 0.25),
 }
 MATCH_PX = 20.0
+GREYS = ((0.9, 0.9, 0.9), (0.45, 0.45, 0.45), (0.06, 0.06, 0.06))
+"""Albedos given in turn to the cubes of the grey run: white, grey and black (no colour to find them by)."""
+
+
+def greyed(setup):
+    """`setup` with its cubes painted in `GREYS`, in turn."""
+    import dataclasses
+    objects = tuple(dataclasses.replace(o, color=GREYS[k % len(GREYS)]) for k, o in enumerate(setup.objects))
+    return dataclasses.replace(setup, objects=objects)
 
 
 def render(setup, light: str) -> np.ndarray:
@@ -49,15 +60,17 @@ def render(setup, light: str) -> np.ndarray:
     return _cached(OUT / "renders" / f"{key}-mitsuba-{light}.png", make)
 
 
-def score(light: str) -> dict:
-    """Reconstruct every scene under `light`; per-cube errors and σ ratios."""
+def score(light: str, grey: bool = False) -> dict:
+    """Reconstruct every scene under `light` (its cubes `greyed` when `grey`); per-cube errors and σ
+    ratios."""
     from bench.scenes import make_scenes
     from depth.reconstruct import reconstruct
     from raytrace.truth import cube_truth
     centre, size, zs, found, total, fp, domains = [], [], [], 0, 0, 0, []
     for sc in make_scenes(N, SEED):
-        cam, mir = sc.setup.camera.build(), sc.setup.mirror.build()
-        rec = reconstruct(render(sc.setup, light), cam, mir)
+        setup = greyed(sc.setup) if grey else sc.setup
+        cam, mir = setup.camera.build(), setup.mirror.build()
+        rec = reconstruct(render(setup, light), cam, mir)
         domains.append(rec.blur_domain)
         truth = [cube_truth(cam, mir, c.build()) for c in sc.setup.objects]
         px_true = np.array([np.mean(t["front_face_corners_px"], axis=0) for t in truth])
@@ -90,10 +103,10 @@ def main() -> int:
           "centre error = |c_hat - c| / distance(c, axis)")
     print(f"{'light':14s} {'found':>7s} {'FP':>3s} | {'centre med':>10s} {'p90':>6s} {'max':>6s} | "
           f"{'size med':>8s} | within 1 / 2 sigma | blur domain chosen: encoded / linear")
-    for light in LIGHTS:
-        r = score(light)
+    for light, grey in [(light, False) for light in LIGHTS] + [("sun-front", True)]:
+        r = score(light, grey)
         c, sz, z = r["centre"] * 100, r["size"] * 100, r["z"]
-        print(f"{light:14s} {r['found']:3d}/{r['total']:<3d} {r['fp']:3d} | {np.median(c):9.2f}% "
+        print(f"{light + (' grey' if grey else ''):14s} {r['found']:3d}/{r['total']:<3d} {r['fp']:3d} | {np.median(c):9.2f}% "
               f"{np.percentile(c, 90):5.1f}% {c.max():5.1f}% | {np.median(sz):7.2f}% | "
               f"{np.mean(z <= 1) * 100:3.0f} / {np.mean(z <= 2) * 100:3.0f} % | {r['encoded']} / {r['linear']}",
               flush=True)
