@@ -54,18 +54,6 @@ def scene_hash(setup: Setup, extra: str = "") -> str:
     return hashlib.sha1((setup_to_toml(setup) + extra).encode()).hexdigest()[:16]
 
 
-def _ray_box_hit(origins, dirs, center, rot, half) -> np.ndarray:
-    """(N,) bool: rays (N, 3) meet the oriented box (slab test in the box frame)."""
-    o = (origins - center) @ rot
-    d = dirs @ rot
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t1 = (-half - o) / d
-        t2 = (half - o) / d
-    tmin = np.nanmax(np.minimum(t1, t2), axis=1)
-    tmax = np.nanmin(np.maximum(t1, t2), axis=1)
-    return (tmax >= np.maximum(tmin, 0.0))
-
-
 def cube_image_points(cube, samples: int = 9) -> np.ndarray:
     """(12·samples, 3) float64 points along the 12 edges of a `raytrace.scene.Cube`."""
     v = cube.vertices()
@@ -103,7 +91,7 @@ class _Checker:
         inside = front & (pix[:, 0] > -1) & (pix[:, 0] < self.w) & (pix[:, 1] > -1) & (pix[:, 1] < self.h)
         if inside.any():
             return True
-        return bool(_ray_box_hit(self.grid_o, self.grid_d, cube.center, cube.rotation, cube.size / 2).any())
+        return bool(cube.hits(self.grid_o, self.grid_d).any())
 
     def image_box(self, cube):
         """(u0, v0, u1, v1) of the cube's reflection, or None if any part is not cleanly inside the mirror."""

@@ -37,6 +37,7 @@ from scipy.spatial.transform import Rotation
 from depth import ddar
 from depth.errors import DegenerateGeometryError, DepthError
 from depth.xslit import XSlit
+from raytrace.scene import Cube
 
 __all__ = ["METHODS", "FaceMeasurement", "CubeEstimate", "FailedEstimate", "estimate_face",
            "estimate_faces_shape_prior",
@@ -473,10 +474,10 @@ def _side_gaps(meas: FaceMeasurement) -> np.ndarray:
 
 
 def _silhouette_disagreement(rays: RayFunction, blob_mask: np.ndarray) -> Callable:
-    """A function of a cube (centre, rows of its axes, edge length) giving the number of pixels where its
-    silhouette (the pixels whose reflected ray meets it) and the blob disagree more than one pixel deep
-    (their symmetric difference eroded by a 3×3 square: a pixel at the blob's edge is part cube, part
-    not, whichever pose is right). Pixels within half the blob's size of its bounding box are tested."""
+    """A function of a cube (`raytrace.scene.Cube`) giving the number of pixels where its silhouette
+    (the pixels whose reflected ray meets it, `Cube.hits`) and the blob disagree more than one pixel
+    deep (their symmetric difference eroded by a 3×3 square: a pixel at the blob's edge is part cube,
+    part not, whichever pose is right). Pixels within half the blob's size of its bounding box are tested."""
     from scipy.ndimage import binary_erosion
 
     ys, xs = np.nonzero(blob_mask)
@@ -487,15 +488,11 @@ def _silhouette_disagreement(rays: RayFunction, blob_mask: np.ndarray) -> Callab
     origins, directions = rays(np.column_stack([xx.ravel(), yy.ravel()]).astype(np.float64))
     seen = np.all(np.isfinite(origins), axis=1) & np.all(np.isfinite(directions), axis=1)
     inside = blob_mask[yy.ravel(), xx.ravel()]
-    origins, directions = np.where(seen[:, None], origins, 0.0), np.where(seen[:, None], directions, 1.0)
+    origins, directions = origins[seen], directions[seen]
 
-    def disagreement(centre, axes, size):
-        o, r = (origins - centre) @ axes.T, directions @ axes.T  # in the cube's frame
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t1, t2 = (-size / 2 - o) / r, (size / 2 - o) / r
-        near = np.nanmax(np.minimum(t1, t2), axis=1)
-        far = np.nanmin(np.maximum(t1, t2), axis=1)
-        hit = seen & (far >= np.maximum(near, 0.0))
+    def disagreement(cube):
+        hit = np.zeros(len(seen), dtype=bool)
+        hit[seen] = cube.hits(origins, directions)
         return int(binary_erosion((hit != inside).reshape(yy.shape), np.ones((3, 3), dtype=bool)).sum())
     return disagreement
 
@@ -864,8 +861,8 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
                 gross = []
                 for x_pose in (before[0][0], result[0]):
                     rot, c, s = unpack(x_pose)
-                    axes = _square_axes(rot, base)
-                    gross.append(off(c - axes[2] * s / 2.0, axes, s))
+                    axes = _square_axes(rot, base)  # rows: a proper rotation's, as `base`'s columns are
+                    gross.append(off(Cube(s, c - axes[2] * s / 2.0, axes.T)))
                 if abs(gross[0] - gross[1]) >= SILHOUETTE_MARGIN_PX:
                     keep = gross[1] < gross[0]
             if not keep:

@@ -84,6 +84,18 @@ class Cube:
         signs = np.stack([(k & 1) > 0, (k & 2) > 0, (k & 4) > 0], axis=1) * 1.0 - 0.5
         return self.center + (signs * self.size) @ self.rotation.T
 
+    def hits(self, origins, directions) -> np.ndarray:
+        """(N,) bool: whether each ray origin + t·direction, t ≥ 0, meets the cube (slab test in the
+        cube's frame; a ray parallel to a pair of faces meets it only between them)."""
+        o = (np.asarray(origins, dtype=np.float64) - self.center) @ self.rotation
+        d = np.asarray(directions, dtype=np.float64) @ self.rotation
+        half = self.size / 2.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1, t2 = (-half - o) / d, (half - o) / d
+        near = np.where(d == 0, np.where(np.abs(o) <= half, -np.inf, np.inf), np.minimum(t1, t2)).max(axis=1)
+        far = np.where(d == 0, np.where(np.abs(o) <= half, np.inf, -np.inf), np.maximum(t1, t2)).min(axis=1)
+        return (far >= near) & (far >= 0.0)
+
     @property
     def face_normals(self) -> np.ndarray:
         """(6, 3) float64 outward world normals of faces 0..5 (+x, −x, +y, −y, +z, −z local)."""

@@ -394,7 +394,7 @@ def test_silhouette_disagreement_against_embree_hits():
     and more the further it is moved."""
     from depth.estimate import SILHOUETTE_MARGIN_PX, _silhouette_disagreement
     from raytrace.render import render
-    from raytrace.scene import Scene
+    from raytrace.scene import Cube, Scene
     from raytrace.truth import mirror_rays
 
     camera, mirror, cube = _sky_lit_scene()
@@ -406,12 +406,13 @@ def test_silhouette_disagreement_against_embree_hits():
         return m.points, m.directions
 
     off = _silhouette_disagreement(rays, blob)
-    axes = cube.rotation.T  # rows: the cube's axes
     up = np.array([0.0, cube.size, 0.0])
-    assert off(cube.center, axes, cube.size) == 0
-    assert off(cube.center, axes, 1.1 * cube.size) >= 10 * SILHOUETTE_MARGIN_PX
-    assert SILHOUETTE_MARGIN_PX <= off(cube.center + 0.05 * up, axes, cube.size) < off(cube.center + 0.2 * up,
-                                                                                        axes, cube.size)
+
+    def moved(shift=0.0, scale=1.0):
+        return Cube(scale * cube.size, cube.center + shift * up, cube.rotation)
+    assert off(cube) == 0
+    assert off(moved(scale=1.1)) >= 10 * SILHOUETTE_MARGIN_PX
+    assert SILHOUETTE_MARGIN_PX <= off(moved(0.05)) < off(moved(0.2))
 
 
 def test_a_tall_merged_top_face_is_told_by_the_silhouette():

@@ -54,3 +54,33 @@ def test_scene_validation():
         Cube(0.0, [0, 0, 0])
     with pytest.raises(RaytraceError, match="rotation: expected an orthonormal"):
         Cube(0.1, [0, 0, 0], np.diag([1.0, 1.0, 2.0]))
+
+
+def test_cube_hits_agrees_with_trimesh_ray_casts():
+    """`Cube.hits` (slab test) against trimesh's ray–triangle intersection on the cube's own mesh, for
+    random rays from outside and from inside the cube, plus rays parallel to a pair of faces."""
+    rng = np.random.default_rng(3)
+    cube = Cube(0.3, np.array([0.1, -0.2, 0.5]), Rotation.from_euler("xyz", [20, -35, 50], degrees=True).as_matrix())
+    origins = cube.center + rng.uniform(-0.6, 0.6, (400, 3))
+    targets = cube.center + rng.uniform(-0.25, 0.25, (400, 3))
+    dirs = targets - origins
+    dirs[::2] *= -1.0  # half of them point away from the cube
+    local = np.zeros((40, 3))
+    local[:, 0] = 1.0  # along the local x axis, at heights inside and outside the slab of y and z
+    local_origins = np.column_stack([np.full(40, -1.0), rng.uniform(-0.3, 0.3, (40, 2))])
+    origins = np.vstack([origins, cube.center + local_origins @ cube.rotation.T])
+    dirs = np.vstack([dirs, local @ cube.rotation.T])
+    mesh = trimesh.Trimesh(cube.vertices(), _box_faces(), process=False)
+    expected = np.zeros(len(origins), dtype=bool)
+    expected[mesh.ray.intersects_first(origins, dirs) >= 0] = True
+    inside = np.all(np.abs((origins - cube.center) @ cube.rotation) < cube.size / 2, axis=1)
+    expected |= inside  # a ray from inside meets the cube at t = 0
+    got = cube.hits(origins, dirs)
+    assert got.sum() > 50 and (~got).sum() > 50
+    assert np.array_equal(got, expected)
+
+
+def _box_faces():
+    """Triangles of the cube with `Cube.vertices`' numbering (bit 0: x, bit 1: y, bit 2: z)."""
+    quads = [(0, 2, 6, 4), (1, 5, 7, 3), (0, 4, 5, 1), (2, 3, 7, 6), (0, 1, 3, 2), (4, 6, 7, 5)]
+    return np.array([t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))])
