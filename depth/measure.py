@@ -244,8 +244,8 @@ def _achromatic_pixels(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarray
     The background is the median colour of the mirror's pixels outside the coloured blobs, kept only
     where at least `background_share` of them lie within its noise band (the largest channel
     difference up to `band` = max(0.02, 4 × its median over the pixels within 0.05 of the background,
-    about 5.6 σ of Gaussian noise)). Pixels that differ from it by more
-    are grown by hysteresis (seeds beyond twice the band); a region is an object only where the ring
+    about 5.6 σ of Gaussian noise)). Pixels that differ from it by more are grown by hysteresis
+    (seeds beyond twice the band); a region is an object only where the ring
     of pixels 1–2 px around it is background (at least `ring_share` of it): a cell of a checkered
     ground borders other cells. Regions within 3 px of a coloured blob are left out: there they are a
     coloured cube's dark or washed-out face, not another object.
@@ -335,9 +335,9 @@ def detect_cubes(
     a blob holding several distinct hues (touching cubes of different colours) is split
     by hue. Grey, white or black cubes are found where the mirror shows a uniform background,
     as regions of another colour than it (`_achromatic_pixels`); on a textured background
-    (a checkered ground) only coloured cubes are found. Each blob's faces are separated by brightness (modes of the histogram of the
-    sRGB value max(R, G, B)); the largest connected region of one brightness is the front
-    face.
+    (a checkered ground) only coloured cubes are found. Each blob's faces are separated by
+    brightness (modes of the histogram of the sRGB value max(R, G, B)); the largest connected
+    region of one brightness is the front face.
 
     Parameters
     ----------
