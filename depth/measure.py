@@ -45,6 +45,7 @@ class FailedMeasurement:
 
     reason: str
     no_contrast_side: int | None = None  # a side (index into SIDE_NAMES) with no contrast at all
+    weak_side: int | None = None  # a left or right side with too few edge points of contrast, or consistent
 
     def __bool__(self) -> bool:
         return False
@@ -1211,6 +1212,7 @@ def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing, en
                 f"{name} side: {int(good.sum())} edge points with contrast ≥ {min_contrast}, "
                 f"need {min_points} (median contrast {float(np.median(c)):.3f})",
                 no_contrast_side=i if float(np.median(c)) < min_contrast else None,
+                weak_side=i if i < 2 else None,
             )
         q = p[good] + e[good, None] * n[good]
         if i < 2:
@@ -1229,7 +1231,8 @@ def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing, en
             new_quads.append(coef)
             nn = np.sign(n[good, 1:2]) * np.stack([-slope, np.ones_like(slope)], axis=1) / np.hypot(1.0, slope)[:, None]
         if keep.sum() < min_points:
-            return FailedMeasurement(f"{name} side: only {int(keep.sum())} consistent edge points")
+            return FailedMeasurement(f"{name} side: only {int(keep.sum())} consistent edge points",
+                                     weak_side=i if i < 2 else None)
         sides.append(q[keep])
         normals.append(nn[keep])
         residuals.append(res[keep])

@@ -126,6 +126,13 @@ def _measurement(img, blob_mask, outline, face_px, channels, compressed):
                            else NO_SIDE_FACE_GAP_PX_SHARP, blob_mask=blob_mask)
 
 
+def _side_to_grow(failed) -> int | None:
+    """The side of a failed outline across which its face mask is grown to the blob: one with no contrast
+    at all, else a left or right one with too few edge points of contrast or too few consistent ones
+    (a side face split off by a brightness step too faint to trace, noise s09/0), or None."""
+    return failed.no_contrast_side if failed.no_contrast_side is not None else failed.weak_side
+
+
 def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: float | None = None,
                 progress=None, compressed: bool = False, blur_domain: str = "auto") -> Reconstruction:
     """Find and estimate every cube in a mirror image.
@@ -184,15 +191,15 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             channels = "colour"
             outline = face_outline(img, face_mask, thin_strips=thin_strips, blur_domain="linear")
         grown = set()
-        while not outline and outline.no_contrast_side is not None and outline.no_contrast_side not in grown:
+        while not outline and (side := _side_to_grow(outline)) is not None and side not in grown:
             # a side with no contrast at all was cut inside one uniform region: the outline there is
             # the blob's (`extended_to_blob`), which `exact` fits as the cube's outer contour. A side face
             # lit like the front face and merged with it makes their top and bottom kink where they meet;
             # the edge points follow the kink (only the side's one curve does not), and `exact`'s outline
             # of the merged faces has it. (Such outlines, rms 0.18–0.44 px about one curve, were refused
             # while the estimate of them came out 30 % off.)
-            grown.add(outline.no_contrast_side)
-            face_mask = extended_to_blob(face_mask, det.mask, outline.no_contrast_side)
+            grown.add(side)
+            face_mask = extended_to_blob(face_mask, det.mask, side)
             outline = face_outline(img, face_mask, thin_strips=thin_strips, channels=channels, blur_domain="linear")
         if not outline:
             refused.append(Refusal(bbox, f"face outline: {outline.reason}"))
