@@ -238,9 +238,10 @@ def _chroma_hue_value(rgb: np.ndarray):
     return chroma, hue, mx
 
 
-def _achromatic_pixels(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarray, min_area: int,
-                       background_share: float = 0.5, ring_share: float = 0.9) -> np.ndarray:
-    """Pixels of grey, white or black objects: regions of another colour than a uniform background.
+def _achromatic_regions(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarray, min_area: int,
+                        background_share: float = 0.5, ring_share: float = 0.9) -> list:
+    """Grey, white or black objects: regions of another colour than a uniform background, each as
+    (local mask, (row, col) offset), in the window of its bounding box.
 
     The background is the median colour of the mirror's pixels outside the coloured blobs, kept only
     where at least `background_share` of them lie within its noise band (the largest channel
@@ -252,10 +253,9 @@ def _achromatic_pixels(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarray
     coloured cube's dark or washed-out face, not another object.
     """
     rest = search & ~coloured
-    none = np.zeros_like(search)
     n_rest = int(rest.sum())
     if n_rest < min_area:
-        return none
+        return []
     sample = np.flatnonzero(rest)[:: max(n_rest // 100_000, 1)]  # medians of a regular subsample
     background = np.median(rgb.reshape(-1, 3)[sample], axis=0)
     dist = np.abs(rgb[..., 0] - background[0])
@@ -264,11 +264,11 @@ def _achromatic_pixels(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarray
     close = dist.ravel()[sample]
     close = close[close <= 0.05]  # the background's own pixels, for its noise
     if close.size * (n_rest / len(sample)) < min_area:
-        return none
+        return []
     band = max(0.02, 4.0 * float(np.median(close)))
     near = dist <= band
     if np.mean(near[rest]) < background_share:
-        return none
+        return []
     weak = rest & ~near
     n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(weak.astype(np.uint8), connectivity=8)
     keep = np.zeros(n_lab, dtype=bool)
@@ -276,14 +276,16 @@ def _achromatic_pixels(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarray
     near_coloured = cv2.dilate(coloured.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
     keep[np.unique(labels[near_coloured & weak])] = False
     keep[0] = False
+    regions = []
     for lab in np.flatnonzero(keep):
         x, y, w, h = stats[lab, :4]
         y0, x0 = max(y - 2, 0), max(x - 2, 0)
         sl = (slice(y0, y + h + 2), slice(x0, x + w + 2))
         comp = labels[sl] == lab
         ring = cv2.dilate(comp.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool) & ~comp & search[sl]
-        keep[lab] = bool(ring.any()) and np.mean(near[sl][ring]) >= ring_share
-    return keep[labels]
+        if ring.any() and np.mean(near[sl][ring]) >= ring_share:
+            regions.append((labels[y : y + h, x : x + w] == lab, (y, x)))
+    return regions
 
 
 def _circular_smooth(hist: np.ndarray, sigma: float) -> np.ndarray:
@@ -335,7 +337,7 @@ def detect_cubes(
     from seeds above `seed_chroma`) inside `mirror_mask` are grouped into connected blobs;
     a blob holding several distinct hues (touching cubes of different colours) is split
     by hue. Grey, white or black cubes are found where the mirror shows a uniform background,
-    as regions of another colour than it (`_achromatic_pixels`); on a textured background
+    as regions of another colour than it (`_achromatic_regions`); on a textured background
     (a checkered ground) only coloured cubes are found. Each blob's faces are separated by
     brightness (modes of the histogram of the sRGB value max(R, G, B)); the largest connected
     region of one brightness is the front face.
@@ -400,7 +402,7 @@ def detect_cubes(
     seeded[0] = False
     candidates = seeded[labels]
 
-    grey = _achromatic_pixels(rgb, search, candidates, min_area)
+    grey = _achromatic_regions(rgb, search, candidates, min_area)
 
     # Split blobs by hue; collect every coloured fragment for the occlusion test.
     n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(
@@ -435,13 +437,10 @@ def detect_cubes(
                 blob_masks.append((piece, (y, x)))
 
     # Grey, white or black objects (found only on a uniform background): one blob each.
-    n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(grey.astype(np.uint8), connectivity=8)
-    for lab in range(1, n_lab):
-        x, y, w, h, area = stats[lab]
-        piece = labels[y : y + h, x : x + w] == lab
-        fragments[y : y + h, x : x + w][piece] = next_id
+    for piece, (y, x) in grey:
+        fragments[y : y + piece.shape[0], x : x + piece.shape[1]][piece] = next_id
         next_id += 1
-        if area >= min_area:
+        if piece.sum() >= min_area:
             blob_masks.append((piece, (y, x)))
 
     detections = []
