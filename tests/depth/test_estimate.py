@@ -302,16 +302,27 @@ def test_a_merged_top_or_bottom_face_beside_a_distinct_side_face(rig, height, ya
     assert not naive or centre_error(rig, naive, cube) > 0.02
 
 
+def _reconstructed(camera, mirror, cubes, light, grey, noise_seed=None):
+    """`reconstruct` on our ray tracer's render (16 spp) of `cubes` under `light` on a `grey` background,
+    with Gaussian noise of σ = 2/255 (the reconstruct bench's) drawn from `noise_seed` when given."""
+    from depth.reconstruct import reconstruct
+    from raytrace.render import linear_to_srgb8, render
+    from raytrace.scene import Scene
+
+    scene = Scene(mirror=mirror, objects=tuple(cubes), light=light, background=(grey,) * 3)
+    image = linear_to_srgb8(render(scene, camera, spp=16, seed=0).image)
+    if noise_seed is not None:
+        noise = np.random.default_rng(noise_seed).normal(0.0, 2.0, image.shape)
+        image = np.clip(np.round(image + noise), 0, 255).astype(np.uint8)
+    return reconstruct(image, camera, mirror)
+
+
 def _found_under_uniform_light(camera, mirror, cube, grey):
     """`reconstruct` on our ray tracer's render of one cube under a uniform light (every face lit
     alike): the one cube found, and the distance of the cube's centre to the mirror axis."""
-    from depth.reconstruct import reconstruct
-    from raytrace.render import linear_to_srgb8, render
-    from raytrace.scene import DirectionalLight, Scene
+    from raytrace.scene import DirectionalLight
 
-    scene = Scene(mirror=mirror, objects=(cube,), light=DirectionalLight(intensity=0.0, ambient=1.0),
-                  background=(grey,) * 3)
-    rec = reconstruct(linear_to_srgb8(render(scene, camera, spp=16, seed=0).image), camera, mirror)
+    rec = _reconstructed(camera, mirror, [cube], DirectionalLight(intensity=0.0, ambient=1.0), grey)
     assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
     return rec.cubes[0], float(mirror.distance_to_axis(cube.center[None])[0])
 
@@ -454,34 +465,46 @@ def test_a_merged_bottom_face_with_a_residual_gap_is_read():
     assert abs(found.depth - depth) < 3.0 * found.depth_std
 
 
-@pytest.mark.parametrize("resolution, focal, camera_yz, radius, height, size, centre, yaw, colour, to_light, ambient, grey", [
-    ((1600, 1200), 3300.877, (-0.05784, 0.79023), 0.11824, 0.57103, 0.0526, (-0.5384, 0.01968, 0.49053), 107.556,
-     (0.7035, 0.1733, 0.8063), (0.12431864, 0.9577707, -0.25926853), 0.309, 0.833),
-    ((2048, 1536), 2721.376, (-0.00163, 0.46711), 0.10896, 0.54911, 0.0367, (0.41966, 0.05195, 0.57284), -119.152,
-     (0.7858, 0.1423, 0.6725), (-0.19768716, 0.74179048, -0.64083279), 0.423, 0.829),
-])
-def test_a_turned_cube_whose_side_face_merges_with_the_front_is_found(resolution, focal, camera_yz, radius, height,
-                                                                       size, centre, yaw, colour, to_light, ambient,
-                                                                       grey):
+_BENCH_SCENES = {  # two scenes of the reconstruct bench (make_scenes(20, 5)): camera, mirror, cubes, light
+    "s09": {"resolution": (1600, 1200), "focal": 3300.877, "camera_yz": (-0.05784, 0.79023), "radius": 0.11824,
+            "height": 0.57103, "to_light": (0.12431864, 0.9577707, -0.25926853), "ambient": 0.309, "grey": 0.833,
+            "cubes": [(0.0526, (-0.5384, 0.01968, 0.49053), 107.556, (0.7035, 0.1733, 0.8063)),
+                      (0.0637, (-0.08099, 0.10558, 0.67294), 164.138, (0.7338, 0.5885, 0.0739)),
+                      (0.0774, (0.54157, 0.00965, 0.66115), -146.502, (0.1056, 0.8145, 0.855))]},
+    "s11": {"resolution": (2048, 1536), "focal": 2721.376, "camera_yz": (-0.00163, 0.46711), "radius": 0.10896,
+            "height": 0.54911, "to_light": (-0.19768716, 0.74179048, -0.64083279), "ambient": 0.423, "grey": 0.829,
+            "cubes": [(0.0367, (0.41966, 0.05195, 0.57284), -119.152, (0.7858, 0.1423, 0.6725))]},
+}
+
+
+def _bench_scene(name, which=None, noise_seed=None):
+    """A `_BENCH_SCENES` scene (only its cubes `which`, when given) under its light, reconstructed:
+    (the reconstruction, mirror, cubes)."""
+    from scipy.spatial.transform import Rotation
+
+    from raytrace.camera import PinholeCamera
+    from raytrace.mirror import CylinderMirror
+    from raytrace.scene import Cube, DirectionalLight
+
+    sc = _BENCH_SCENES[name]
+    camera = PinholeCamera.from_look_at(sc["resolution"], (sc["focal"],) * 2, None, (0.0, *sc["camera_yz"]),
+                                        (0, 0, 0), (0, 1, 0))
+    mirror = CylinderMirror(sc["radius"], sc["height"], (0, 0, 0), (0, 1, 0))
+    cubes = [Cube(size, np.array(c), Rotation.from_euler("y", yaw, degrees=True).as_matrix(), color=col)
+             for size, c, yaw, col in sc["cubes"]]
+    cubes = cubes if which is None else [cubes[k] for k in which]
+    light = DirectionalLight(np.array(sc["to_light"]), 0.8, sc["ambient"])
+    return _reconstructed(camera, mirror, cubes, light, sc["grey"], noise_seed), mirror, cubes
+
+
+@pytest.mark.parametrize("name, k", [("s09", 0), ("s11", 0)])
+def test_a_turned_cube_whose_side_face_merges_with_the_front_is_found(name, k):
     """Two cubes of the reconstruct bench (s09/0, s11/1), turned 25° with a side face lit like the front
     face: no contrast between them, so the face's outline is grown to the blob's, whose top and bottom
     kink where the two faces meet (rms 0.44 and 0.31 px about one curve). Such outlines were refused;
-    `exact`'s outline of the merged faces has the kink. Rendered by our ray tracer under the bench's
+    `exact`'s outline of the merged faces has the kink. Rendered alone by our ray tracer under the bench's
     light, each must be found, its centre within 2 % and its depth within 3 σ."""
-    from scipy.spatial.transform import Rotation
-
-    from depth.reconstruct import reconstruct
-    from raytrace.camera import PinholeCamera
-    from raytrace.mirror import CylinderMirror
-    from raytrace.render import linear_to_srgb8, render
-    from raytrace.scene import Cube, DirectionalLight, Scene
-
-    camera = PinholeCamera.from_look_at(resolution, (focal, focal), None, (0.0, *camera_yz), (0, 0, 0), (0, 1, 0))
-    mirror = CylinderMirror(radius, height, (0, 0, 0), (0, 1, 0))
-    cube = Cube(size, np.array(centre), Rotation.from_euler("y", yaw, degrees=True).as_matrix(), color=colour)
-    scene = Scene(mirror=mirror, objects=(cube,), light=DirectionalLight(np.array(to_light), 0.8, ambient),
-                  background=(grey,) * 3)
-    rec = reconstruct(linear_to_srgb8(render(scene, camera, spp=16, seed=0).image), camera, mirror)
+    rec, mirror, (cube,) = _bench_scene(name, which=[k])
     assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
     found, depth = rec.cubes[0], float(mirror.distance_to_axis(cube.center[None])[0])
     assert np.linalg.norm(found.estimate.center - cube.center) / depth < 0.02
@@ -494,27 +517,7 @@ def test_a_side_face_split_off_by_a_faint_step_is_merged_back():
     step between them is too faint to trace under the noise (4 consistent edge points on the right side),
     and the cube was refused. The face mask is now grown to the blob across that side, as across a side
     with no contrast at all: the cube must be found, its centre within 2 % and its depth within 3 σ."""
-    from scipy.spatial.transform import Rotation
-
-    from depth.reconstruct import reconstruct
-    from raytrace.camera import PinholeCamera
-    from raytrace.mirror import CylinderMirror
-    from raytrace.render import linear_to_srgb8, render
-    from raytrace.scene import Cube, DirectionalLight, Scene
-
-    camera = PinholeCamera.from_look_at((1600, 1200), (3300.877, 3300.877), None, (0.0, -0.05784, 0.79023),
-                                        (0, 0, 0), (0, 1, 0))
-    mirror = CylinderMirror(0.11824, 0.57103, (0, 0, 0), (0, 1, 0))
-    spec = [(0.0526, (-0.5384, 0.01968, 0.49053), 107.556, (0.7035, 0.1733, 0.8063)),
-            (0.0637, (-0.08099, 0.10558, 0.67294), 164.138, (0.7338, 0.5885, 0.0739)),
-            (0.0774, (0.54157, 0.00965, 0.66115), -146.502, (0.1056, 0.8145, 0.855))]
-    cubes = tuple(Cube(s, np.array(c), Rotation.from_euler("y", yaw, degrees=True).as_matrix(), color=col)
-                  for s, c, yaw, col in spec)
-    scene = Scene(mirror=mirror, objects=cubes, background=(0.833,) * 3,
-                  light=DirectionalLight(np.array([0.12431864, 0.9577707, -0.25926853]), 0.8, 0.309))
-    clean = linear_to_srgb8(render(scene, camera, spp=16, seed=0).image)
-    noisy = np.clip(np.round(clean + np.random.default_rng(890176246).normal(0.0, 2.0, clean.shape)), 0, 255)
-    rec = reconstruct(noisy.astype(np.uint8), camera, mirror)
+    rec, mirror, cubes = _bench_scene("s09", noise_seed=890176246)
     cube, depth = cubes[0], float(mirror.distance_to_axis(cubes[0].center[None])[0])
     found = min(rec.cubes, key=lambda c: np.linalg.norm(c.estimate.center - cube.center))
     assert np.linalg.norm(found.estimate.center - cube.center) / depth < 0.02
