@@ -93,6 +93,9 @@ LOG_SIZE_RANGE = np.log(10.0)
 """When `exact` places the face at a starting turn, it keeps the edge length within this factor (as a
 log) of its ddar start: far beyond lies only a degenerate fit, a face grown without bound."""
 
+_FD_STEP = np.sqrt(np.finfo(np.float64).eps)
+"""Relative forward-difference step of `exact`'s Jacobians (scipy's '2-point' default)."""
+
 NO_SIDE_FACE_GAP_PX = 0.75
 """A measured silhouette gap (`FaceMeasurement.side_gaps_px`) up to this says no distinct side face
 shows beside that side of the front face (as `depth.measure.silhouette`'s `min_gap_px`): the side
@@ -427,31 +430,38 @@ def _dds(local: LocalXSlit, kap: dict) -> CubeEstimate | FailedEstimate:
                         rms_residual=float(np.mean(kap["rms"])))
 
 
+# The face-frame helpers below take one face (c: (3,), axes: (3, 3), size: scalar) or a batch of K
+# faces (c: (K, 3), axes: (K, 3, 3), size: (K,)) and give (N,) or (K, N) arrays: `exact` evaluates
+# a pose and its finite-difference neighbours in one call.
+
+def _along(points, v, c):
+    """(points − c)·v per point: (N,) or (K, N) for v, c of shape (3,) or (K, 3)."""
+    return v @ points.T - np.sum(c * v, axis=-1)[..., None]
+
+
 def _side_plane_w(points, directions, c, axes, side_sign, size) -> np.ndarray:
     """Where rays meet the side plane b = side_sign·size/2 of a face (centre c, rows of `axes`:
-    vertical, horizontal, normal): their coordinate along the normal, w = (q − c)·n : (N,).
+    vertical, horizontal, normal): their coordinate along the normal, w = (q − c)·n.
     `side_sign` is a scalar or (N,) array."""
-    h, n = axes[1], axes[2]
-    offset = np.broadcast_to(np.asarray(side_sign, dtype=np.float64) * size / 2.0, (len(points),))
+    h, n = axes[..., 1, :], axes[..., 2, :]
+    offset = np.asarray(side_sign, dtype=np.float64) * np.asarray(size)[..., None] / 2.0
     with np.errstate(divide="ignore", invalid="ignore"):
-        t = ((c - points) @ h + offset) / (directions @ h)
-    q = points + t[:, None] * directions - c
-    return q @ n
+        t = (offset - _along(points, h, c)) / (h @ directions.T)
+    return _along(points, n, c) + t * (n @ directions.T)
 
 
 def _square_axes(rotvec: np.ndarray, base: np.ndarray) -> np.ndarray:
-    """Rows (e_vertical, e_horizontal, normal) of the face, rotated by `rotvec` from `base`."""
+    """Rows (e_vertical, e_horizontal, normal) of the face, rotated by `rotvec` ((3,) or (K, 3)) from `base`."""
     return Rotation.from_rotvec(rotvec).as_matrix() @ base.T
 
 
 def _face_coords(origins, directions, c, axes):
     """Where rays meet the face plane (centre c, rows of `axes`: vertical, horizontal, normal):
-    their (a, b) = (vertical, horizontal) coordinates : two (N,) arrays."""
-    n = axes[2]
+    their (a, b) = (vertical, horizontal) coordinates."""
+    e_a, e_b, n = axes[..., 0, :], axes[..., 1, :], axes[..., 2, :]
     with np.errstate(divide="ignore", invalid="ignore"):
-        t = ((c - origins) @ n) / (directions @ n)
-    q = origins + t[:, None] * directions - c
-    return q @ axes[0], q @ axes[1]
+        t = -_along(origins, n, c) / (n @ directions.T)
+    return _along(origins, e_a, c) + t * (e_a @ directions.T), _along(origins, e_b, c) + t * (e_b @ directions.T)
 
 
 # The cube in its front face's frame, in units of the edge length: vertices (a, b, w) with a along
@@ -503,7 +513,7 @@ def _face_extent_px(directions, sgn, size, along, normal, px_per_m) -> np.ndarra
     signed outward by `sgn`, times the pixels per metre there. > 0 where that face is seen, ≤ 0 where
     it is hidden; not finite where the ray runs in the front face's plane."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        return sgn * size * (directions @ along) / (directions @ normal) * px_per_m
+        return sgn * np.asarray(size)[..., None] * (along @ directions.T) / (normal @ directions.T) * px_per_m
 
 
 def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local: LocalXSlit,
@@ -573,11 +583,15 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     p3, d3 = rays(pix + step[:, ::-1])
 
     def unpack(x):
-        c = c0 + x[3:6] * scale
-        s = s0 * np.exp(x[6]) if cube_size is None else cube_size
-        return x[:3], c, s
+        """Turn vector, face centre and edge length of poses x (K, 7): (K, 3), (K, 3), (K,); of one
+        pose x (7,): (3,), (3,), a scalar."""
+        xs = np.atleast_2d(x)
+        c = c0 + xs[:, 3:6] * scale
+        s = s0 * np.exp(xs[:, 6]) if cube_size is None else np.full(len(xs), cube_size)
+        return (xs[:, :3], c, s) if np.ndim(x) == 2 else (xs[0, :3], c[0], float(s[0]))
 
     back_idx = np.flatnonzero(is_back)
+
     # The faces merged with the front face: a side face beside each contour side (counted only where
     # seen). The measured outline is the boundary of their union; `contour` gives it.
     merged = [(_FRONT, None, 0.0)] + [(_FACES[sign[k] > 0], 1, sign[k]) for k in contour_sides]
@@ -602,13 +616,14 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     pairs, pair_axis, pair_sign = face_pairs(merged)
 
     def coords(q, r, c, axes, s):
-        """Per point: its measured coordinate minus where the model puts its edge (metres)."""
+        """Per pose (K) and point (rays q, r: the points' own or those beside them): its measured
+        coordinate minus where the model puts its edge (metres), (K, N)."""
         a, b = _face_coords(q, r, c, axes)
-        out = np.where(is_lr, b, a) - sign[sid] * s / 2.0
+        out = np.where(is_lr, b, a) - sign[sid] * s[:, None] / 2.0
         if len(back_idx):  # back edges: on the side plane at w = −s
-            out[back_idx] = _side_plane_w(q[back_idx], r[back_idx], c, axes, sign[sid[back_idx]], s) + s
+            out[:, back_idx] = _side_plane_w(q[back_idx], r[back_idx], c, axes, sign[sid[back_idx]], s) + s[:, None]
         if len(merged) > 1:
-            out[front_idx] = contour(r[front_idx], axes, s, a[front_idx], b[front_idx], out[front_idx])
+            out[:, front_idx] = contour(r[front_idx], axes, s, a[:, front_idx], b[:, front_idx], out[:, front_idx])
         return out
 
     def contour(r, axes, s, a, b, front):
@@ -618,55 +633,82 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         along the point's row (left/right) or column (top/bottom) is the largest crossing of a face's
         vertex pair, and the residual is the point's coordinate minus that extent. A point beyond
         the union's span keeps its front-edge residual."""
-        dn = r @ axes[2]
+        s = s[:, None, None]
+        dn = axes[:, 2] @ r.T
         with np.errstate(divide="ignore", invalid="ignore"):
-            shift = s * np.stack([r @ axes[0] / dn, r @ axes[1] / dn], axis=1)  # (N, 2): a back vertex's move
+            shift = s * np.stack([axes[:, 0] @ r.T / dn, axes[:, 1] @ r.T / dn], axis=-1)  # (K, N, 2): a back vertex's move
         # a side/top face is seen where its back edge moves outward (σ·shift > 0); hidden faces image
         # inside the others and are left out (one hidden behind a seen top face would poke out)
-        seen = np.where(pair_axis[None, :] < 0, True,
-                        pair_sign[None, :] * shift[:, np.maximum(pair_axis, 0)] > 0)  # (N, P)
-        va = _VERTS[None, :, 0] * s - _VERTS[None, :, 2] * shift[:, 0:1]  # (N, 8) projected a
-        vb = _VERTS[None, :, 1] * s - _VERTS[None, :, 2] * shift[:, 1:2]  # (N, 8) projected b
+        seen = np.where(pair_axis < 0, True, pair_sign * shift[..., np.maximum(pair_axis, 0)] > 0)  # (K, N, P)
+        va = _VERTS[:, 0] * s - _VERTS[:, 2] * shift[..., 0:1]  # (K, N, 8) projected a
+        vb = _VERTS[:, 1] * s - _VERTS[:, 2] * shift[..., 1:2]  # (K, N, 8) projected b
         lr = sid[front_idx] < 2
         along = np.where(lr, a, b)  # the line: a = a_p for left/right points, b = b_p for top/bottom
         x = np.where(lr[:, None], va, vb)  # coordinate fixed by the line
         y = np.where(lr[:, None], vb, va)  # coordinate measured
-        x0, x1, y0, y1 = x[:, pairs[:, 0]], x[:, pairs[:, 1]], y[:, pairs[:, 0]], y[:, pairs[:, 1]]
+        x0, x1, y0, y1 = x[..., pairs[:, 0]], x[..., pairs[:, 1]], y[..., pairs[:, 0]], y[..., pairs[:, 1]]
         with np.errstate(divide="ignore", invalid="ignore"):
-            t = (along[:, None] - x0) / (x1 - x0)
+            t = (along[..., None] - x0) / (x1 - x0)
         sg = sign[sid[front_idx]][:, None]
         cross = np.where(seen & np.isfinite(t) & (t >= 0) & (t <= 1), sg * (y0 + t * (y1 - y0)), -np.inf)
-        extent = cross.max(axis=1)
+        extent = cross.max(axis=-1)
         measured = np.where(lr, b, a)
         return np.where(np.isfinite(extent), measured - sign[sid[front_idx]] * extent, front)
 
     def pixel_weights(x):
-        """1 / |image gradient| (metres per pixel) of each point's residual at pose x; 0 where a pixel
-        says nothing. A residual times its weight is then the point's distance (px) from the modelled
-        edge across that edge (first order), not along the row or column it was measured on: where the
-        outline of merged faces runs steeply to that line (the slanted edge of a merged top face near a
-        corner), the distance along the line is many pixels for a fraction of one across."""
-        rot, c, s = unpack(x)
+        """1 / |image gradient| (metres per pixel) of each point's residual at pose x (7,), or per pose
+        of x (K, 7); 0 where a pixel says nothing. A residual times its weight is then the point's
+        distance (px) from the modelled edge across that edge (first order), not along the row or
+        column it was measured on: where the outline of merged faces runs steeply to that line (the
+        slanted edge of a merged top face near a corner), the distance along the line is many pixels
+        for a fraction of one across."""
+        rot, c, s = unpack(np.atleast_2d(x))
         axes = _square_axes(rot, base)
         here = coords(p, d, c, axes, s)
         m = np.hypot(coords(p2, d2, c, axes, s) - here, coords(p3, d3, c, axes, s) - here) / 0.5
-        ok = np.isfinite(m) & (m > 0) & (m < 2.0 * s)
-        return np.where(ok, 1.0 / np.where(ok, m, 1.0), 0.0)
+        ok = np.isfinite(m) & (m > 0) & (m < 2.0 * s[:, None])
+        w = np.where(ok, 1.0 / np.where(ok, m, 1.0), 0.0)
+        return w if np.ndim(x) == 2 else w[0]
 
     weight = pixel_weights(np.zeros(7))
     if np.count_nonzero(weight[sid < 4]) < 8:
         return FailedEstimate("exact", "too few edge points with a usable pixel scale")
 
-    def resid(x):
+    def resids(x, w=None):
+        """Per pose of x (K, 7): the edge points' residuals (px), then the hidden-side penalties
+        (K, M); at the pixel scales `weight` or at w (K, N: one row per pose)."""
         rot, c, s = unpack(x)
         axes = _square_axes(rot, base)
-        r = coords(p, d, c, axes, s) * weight
+        w = weight[None] if w is None else w
+        r = coords(p, d, c, axes, s) * w
         r = np.where(np.isfinite(r), r, 0.0)
         if len(hid_idx):  # the image width (px) of a side face that must stay hidden, beyond its allowance
-            ext = np.maximum(_face_extent_px(d[hid_idx], sign[sid[hid_idx]], s, axes[1], axes[2], weight[hid_idx]), 0.0)
+            ext = np.maximum(_face_extent_px(d[hid_idx], sign[sid[hid_idx]], s, axes[:, 1], axes[:, 2],
+                                             w[:, hid_idx]), 0.0)
             excess = np.where(np.isfinite(ext), np.maximum(ext - hid_allowed, 0.0), 0.0)
-            r = np.concatenate([r, excess / SIDE_WIDTH_SIGMA_PX])
+            r = np.concatenate([r, excess / SIDE_WIDTH_SIGMA_PX], axis=1)
         return r
+
+    def resid(x):
+        """The residuals of one pose x (7,): see `resids`."""
+        return resids(x[None])[0]
+
+    def fit_lsq(y0, free, x_fixed=None, own_scales=None, **kw):
+        """least_squares over the pose parameters `free` (the others held at x_fixed) with a forward-
+        difference Jacobian whose neighbouring poses are evaluated in one batched call. With
+        `own_scales` (a mask of the points to use), the pixel scales are re-measured at every pose."""
+        def values(y):
+            x = np.zeros((len(y), 7)) if x_fixed is None else np.repeat(x_fixed[None], len(y), axis=0)
+            x[:, free] = y
+            w = None if own_scales is None else np.where(own_scales, pixel_weights(x), 0.0)
+            return resids(x, w)
+
+        def jac(y):
+            # scipy's '2-point' step: √ε·max(1, |y|), taken as the representable difference
+            h = (y + _FD_STEP * np.maximum(1.0, np.abs(y))) - y
+            f = values(np.vstack([y, y + np.diag(h)]))
+            return ((f[1:] - f[0]) / h[:, None]).T
+        return least_squares(lambda y: values(y[None])[0], y0, jac=jac, **kw)
 
     def covariance(j, r, n_params):
         # Sandwich covariance with Σ = σ²·I + edge_bias_px²·(ones within each side): a common offset
@@ -685,6 +727,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     lim = np.deg2rad(54.7)
     opts = dict(method="trf", loss="soft_l1", f_scale=1.0, x_scale="jac", max_nfev=300)
     upright = np.array([0, 3, 4, 5, 6])  # turn about the vertical, centre, log size
+    placed = upright[1:]  # centre and log size at a given turn
     upright_bounds = ([-lim] + [-np.inf] * 4, [lim] + [np.inf] * 4)
 
     def full(y):
@@ -697,23 +740,19 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         best = None
         for x0 in starts:
             if free:
-                sol = least_squares(resid, x0, bounds=([-lim] * 3 + [-np.inf] * 4, [lim] * 3 + [np.inf] * 4),
-                                    **dict(opts, max_nfev=max_nfev))
+                sol = fit_lsq(x0, np.arange(7), bounds=([-lim] * 3 + [-np.inf] * 4, [lim] * 3 + [np.inf] * 4),
+                              **dict(opts, max_nfev=max_nfev))
                 x = sol.x
             else:
-                def fun(y):
-                    return resid(full(y))
                 y0 = x0[upright]
                 if len(starts) > 1 and len(merged) > 1:
                     # ddar read the contour as the face, so its centre and size suit no turn that shows
                     # a merged side face: place the face at this start's turn first, so that each start
                     # explores its turn rather than sliding back to ddar's
-                    def at_turn(z, turn=y0[0]):
-                        return fun(np.r_[turn, z])
-                    y0 = np.r_[y0[0], least_squares(at_turn, y0[1:], bounds=([-np.inf] * 3 + [-LOG_SIZE_RANGE],
-                                                                             [np.inf] * 3 + [LOG_SIZE_RANGE]),
-                                                    **dict(opts, max_nfev=PLACE_NFEV)).x]
-                sol = least_squares(fun, y0, bounds=upright_bounds, **dict(opts, max_nfev=max_nfev))
+                    y0 = np.r_[y0[0], fit_lsq(y0[1:], placed, full(y0),
+                                              bounds=([-np.inf] * 3 + [-LOG_SIZE_RANGE], [np.inf] * 3 + [LOG_SIZE_RANGE]),
+                                              **dict(opts, max_nfev=PLACE_NFEV)).x]
+                sol = fit_lsq(y0, upright, bounds=upright_bounds, **dict(opts, max_nfev=max_nfev))
                 x = full(sol.x)
             if sol.status >= 0 and (best is None or sol.cost < best[1].cost):  # 0: stopped at max_nfev
                 best = (x, sol)
@@ -762,9 +801,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
                     break
                 weight = w  # the scales of the previous turn's pose
 
-                def at_turn(z, turn=t):
-                    return resid(np.r_[turn, 0.0, 0.0, z])
-                x = np.r_[t, 0.0, 0.0, least_squares(at_turn, x[3:7], **dict(opts, max_nfev=PLACE_NFEV)).x]
+                x = np.r_[t, 0.0, 0.0, fit_lsq(x[3:7], placed, np.r_[t, np.zeros(6)], **dict(opts, max_nfev=PLACE_NFEV)).x]
                 w = pixel_weights(x)
                 c, c0 = costs([(x, w), fitted])
                 ratio = c / max(c0, 1e-12)
@@ -779,13 +816,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         # Finished at its own pixel scales, re-measured at every step: with scales held at one pose
         # and re-measured between solves, the fit can slide back to the turn it started from.
         usable = (best[1] > 0) & (fitted[1] > 0)
-
-        def own(y):
-            nonlocal weight
-            x = full(y)
-            weight = np.where(usable, pixel_weights(x), 0.0)
-            return resid(x)
-        sol = least_squares(own, best[0][upright], bounds=upright_bounds, **opts)
+        sol = fit_lsq(best[0][upright], upright, own_scales=usable, bounds=upright_bounds, **opts)
         x = full(sol.x)
         weight = pixel_weights(x)
         if sol.status < 0 or np.divide(*costs([(x, weight), fitted])) > PROFILE_GAIN:

@@ -4,6 +4,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 from depth.errors import DepthError
 from depth.estimate import NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, estimate_face
@@ -522,3 +523,37 @@ def test_a_side_face_split_off_by_a_faint_step_is_merged_back():
     found = min(rec.cubes, key=lambda c: np.linalg.norm(c.estimate.center - cube.center))
     assert np.linalg.norm(found.estimate.center - cube.center) / depth < 0.02
     assert abs(found.depth - depth) < 3.0 * found.depth_std
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2 ** 32 - 1), k=st.integers(1, 4))
+def test_face_frame_helpers_batched_match_plane_intersections(seed, k):
+    # `exact` evaluates a pose and its finite-difference neighbours in one call: each batch row of
+    # the face-frame helpers must be the ray/plane intersection of that face, computed here point by
+    # point from q = o + t·r with (q − c)·n = 0 (and (q − c)·h = ±size/2 for the side plane).
+    from scipy.spatial.transform import Rotation
+
+    from depth.estimate import _face_coords, _side_plane_w
+
+    rng = np.random.default_rng(seed)
+    origins = rng.normal(size=(7, 3))
+    directions = rng.normal(size=(7, 3))
+    c = rng.normal(size=(k, 3))
+    axes = Rotation.random(k, random_state=seed).as_matrix()  # rows: vertical, horizontal, normal
+    size = rng.uniform(0.1, 2.0, size=k)
+    side_sign = rng.choice([-1.0, 1.0], size=7)
+    a, b = _face_coords(origins, directions, c, axes)
+    w = _side_plane_w(origins, directions, c, axes, side_sign, size)
+    assert a.shape == b.shape == w.shape == (k, 7)
+    for j in range(k):
+        e_a, e_b, n = axes[j]
+        for i in range(7):
+            o, r = origins[i], directions[i]
+            q = o + ((c[j] - o) @ n) / (r @ n) * r
+            assert a[j, i] == pytest.approx((q - c[j]) @ e_a, rel=1e-9, abs=1e-9)
+            assert b[j, i] == pytest.approx((q - c[j]) @ e_b, rel=1e-9, abs=1e-9)
+            q = o + ((c[j] - o) @ e_b + side_sign[i] * size[j] / 2.0) / (r @ e_b) * r
+            assert w[j, i] == pytest.approx((q - c[j]) @ n, rel=1e-9, abs=1e-9)
+        # one face at a time gives the same row
+        a1, b1 = _face_coords(origins, directions, c[j], axes[j])
+        np.testing.assert_allclose(np.stack([a1, b1]), np.stack([a[j], b[j]]), rtol=1e-12, atol=1e-12)
