@@ -606,11 +606,12 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     front_idx = np.flatnonzero(sid < 4)
 
     def face_pairs(faces):
-        """Vertex pairs of the given faces (P, 2), and per pair its face's (frame axis, sign) for the
-        visibility test (axis −1: the front face, always seen)."""
-        pr = np.array([(f[i], f[j]) for f, _, _ in faces for i in range(4) for j in range(i + 1, 4)])
-        ax = np.repeat([-1 if a is None else a for _, a, _ in faces], 6)
-        sg = np.repeat([sg for _, _, sg in faces], 6)
+        """The edges of the given faces as vertex pairs (P, 2), and per edge its face's (frame axis,
+        sign) for the visibility test (axis −1: the front face, always seen). Each face images as a
+        convex quadrilateral, so a line's largest crossing of it is on an edge."""
+        pr = np.array([(f[i], f[(i + 1) % 4]) for f, _, _ in faces for i in range(4)])
+        ax = np.repeat([-1 if a is None else a for _, a, _ in faces], 4)
+        sg = np.repeat([sg for _, _, sg in faces], 4)
         return pr, ax, sg
 
     pairs, pair_axis, pair_sign = face_pairs(merged)
@@ -631,7 +632,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         faces merged with it. Each point's face is taken to image like its own neighbourhood: the
         cube's vertices are carried along the point's ray onto the face plane, the union's extent
         along the point's row (left/right) or column (top/bottom) is the largest crossing of a face's
-        vertex pair, and the residual is the point's coordinate minus that extent. A point beyond
+        edge, and the residual is the point's coordinate minus that extent. A point beyond
         the union's span keeps its front-edge residual."""
         s = s[:, None, None]
         dn = axes[:, 2] @ r.T
