@@ -797,3 +797,21 @@ def test_extended_to_blob_stops_at_gaps_in_the_blob():
     assert np.array_equal(top, grown.T)
     right = extended_to_blob(face[:, ::-1], blob[:, ::-1], 1)  # mirrored: grown rightward
     assert np.array_equal(right, grown[:, ::-1])
+
+
+def test_reconstruct_tells_an_empty_mirror_only_from_the_mirror_region(rig):
+    # Variation outside the mirror (the camera sees the room beside it) is no mirror content; one
+    # pixel inside the mirror that differs is (it then finds no cube, rather than refusing the image).
+    from raytrace.truth import mirror_mask
+
+    from depth.reconstruct import reconstruct
+
+    mask = mirror_mask(rig.camera, rig.mirror)
+    w, h = rig.camera.resolution
+    img = np.full((h, w, 3), 0.5)
+    img[~mask] = np.random.default_rng(1).random((np.count_nonzero(~mask), 3))
+    with pytest.raises(DepthError, match="no mirror content"):
+        reconstruct(img, rig.camera, rig.mirror)
+    ys, xs = np.nonzero(mask)
+    img[ys[len(ys) // 2], xs[len(ys) // 2], 2] = 0.6  # the blue channel only
+    assert reconstruct(img, rig.camera, rig.mirror).cubes == []
