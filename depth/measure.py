@@ -1254,6 +1254,15 @@ _ESF_MIN_STRIP_PX = 0.5  # narrowest strip believed
 _ESF_DEBUG = False
 _ESF_SINGLE_PIXEL_PX = 1.2  # a strip found from one phase and narrower than this fills one pixel only
 _ESF_MIN_GAIN = 0.3  # the two-step model must remove this fraction of the one-step misfit
+# In a blurred image (`BLURRED_RAMP_PX`) the blur's tails read as a strip of a colour between the
+# face's and the outside's, about a pixel wide, on nearly every side (the two-step model then removes
+# 40–99 % of the one-step misfit). A strip is believed there only when its colour is clearly off that
+# line, which no blur of the two makes, and the two steps explain nearly all of the profile. Measured
+# on the lighting bench's Mitsuba renders (Gaussian pixel filter, ramps of 1.6–1.8 px) and on the
+# bench's blurred images: real strips (a side face darker than the front face) at 0.15–0.8 off the
+# line and 0.975–0.997 of the misfit removed; blur tails at 0.00–0.11 off the line.
+_ESF_BLURRED_STRIP_OFF_COLOUR = 0.14  # of face − outside
+_ESF_BLURRED_STRIP_GAIN = 0.95  # fraction of the one-step misfit removed
 
 
 def _ramp_cdf(x: np.ndarray, p: float, q: float) -> np.ndarray:
@@ -1364,9 +1373,12 @@ def _esf_side(linear, lines, quads, corners, i, inner, margin, min_contrast):
     colour (which sees a strip of the face's chroma but another brightness against grey) where
     chroma finds no strip."""
     res = _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast, True)
-    if res is None or res[1] == 0.0:
+    if res is None or res[1] == 0.0 or not res[5]:
+        # (a strip of the face's chroma but another brightness lies on the line between the face's
+        # chroma and a grey outside's: distinct, in a blurred image, only in full colour)
         full = _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast, False)
-        if full is not None and (res is None or full[1] > 0.0 or (full[4] is not None and res[4] is None)):
+        if full is not None and (res is None or (full[1] > 0.0 and (res[1] == 0.0 or full[5]))
+                                 or (full[4] is not None and res[4] is None)):
             return full  # a strip, or an off-colour pixel that may be one
     return res
 
@@ -1374,13 +1386,15 @@ def _esf_side(linear, lines, quads, corners, i, inner, margin, min_contrast):
 def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast, use_chroma):
     """Edge offset of side i from its pooled edge-spread function, or None when not measurable.
 
-    Returns (e, w, e_one, s, other): the face edge's outward offset e (px) from the fitted side, the
-    width w of an outer strip (0 when one step explains the profile), the one-step edge e_one, the
-    one-step ramp width s (px; > 1 for a blurred image), and `other`, None or the (e, w) of the side's
-    other reading where its profile is one off-colour pixel seen at a single phase: that pixel is as
-    well a strip filling it as a mixed pixel of the face, a narrower strip and the outside, and a
-    fit of one sample per pixel cannot tell them apart (its two-step misfit ties across w ≲ 1 px).
-    Read as a strip, the other reading is (0, 0): the side where the per-point estimate put it.
+    Returns (e, w, e_one, s, other, distinct): the face edge's outward offset e (px) from the fitted
+    side, the width w of an outer strip (0 when one step explains the profile), the one-step edge
+    e_one, the one-step ramp width s (px; > 1 for a blurred image), `other`, None or the (e, w) of
+    the side's other reading where its profile is one off-colour pixel seen at a single phase: that
+    pixel is as well a strip filling it as a mixed pixel of the face, a narrower strip and the
+    outside, and a fit of one sample per pixel cannot tell them apart (its two-step misfit ties
+    across w ≲ 1 px). Read as a strip, the other reading is (0, 0): the side where the per-point
+    estimate put it. `distinct`: the strip found stands out even in a blurred image
+    (`_ESF_BLURRED_STRIP_OFF_COLOUR`).
 
     Pixels in the band around the side are reduced to a face-ness f (projection of the colour on
     c_face − c_out, both measured per station along the side: 1 on the face, 0 outside) and the
@@ -1489,6 +1503,8 @@ def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast
               E[g2], W[g2], "noise", noise_var, "strip", np.round(strip_lvl, 3), "face", round(al2 + be2, 3), "ph", phases)
     accept = (gain > max(_ESF_MIN_GAIN * sse1, 40.0 * noise_var) and contrast >= _ESF_MIN_STRIP_CONTRAST * be2
               and be2 > 0.5 and W[g2] >= _ESF_MIN_STRIP_PX and E[g2] <= e_one - 0.15)
+    distinct = bool(accept and gain >= _ESF_BLURRED_STRIP_GAIN * sse1
+                    and np.linalg.norm(rho[g2]) >= _ESF_BLURRED_STRIP_OFF_COLOUR * be2)
     other = None
     if accept and phases < 6:
         # one sample per pixel across the side: a mixed pixel and a strip of a colour between the
@@ -1503,8 +1519,8 @@ def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast
         # the outside, the strip's colour unknown; the face's edge may lie anywhere in that pixel
         if phases < 6 and W[g2] < _ESF_SINGLE_PIXEL_PX:
             other = (0.0, 0.0)  # one step: the per-point area estimate stands (as for w = 0 below)
-        return float(E[g2]), float(W[g2]), e_one, scale1, other
-    return e_one, 0.0, e_one, scale1, other
+        return float(E[g2]), float(W[g2]), e_one, scale1, other, distinct
+    return e_one, 0.0, e_one, scale1, other, False
 
 
 BLUR_EVIDENCE_MARGIN = 0.015
@@ -1622,14 +1638,15 @@ def _esf_pass(linear, model, min_contrast, margin=2.5, sides=range(4)):
         res = _esf_side(linear, model[0], model[1], corners, i, inner, margin, min_contrast)
         if res is not None:
             found[i] = res
-    # a blurred image (edges wider than a pixel on every side) hides a thin strip's steps in
-    # the blur's tails: leave the sides to the per-point estimate
+    # a blurred image (edges wider than a pixel on every side) hides a thin strip's steps in the
+    # blur's tails, which read as a strip themselves: only a distinct strip moves a side there
     ramp = float(min(r[3] for r in found.values())) if found else float("nan")
+    blurred = ramp > BLURRED_RAMP_PX
     others = {}
-    if ramp > BLURRED_RAMP_PX:
-        return model, np.zeros(4), ramp, others
     for i, res in found.items():
-        e, ws, e_one, _, other = res
+        e, ws, e_one, _, other, distinct = res
+        if blurred and not distinct:
+            continue
         if other is not None:
             others[i] = other
         if ws <= 0:  # one step: the per-point area estimate is already exact

@@ -710,6 +710,33 @@ def test_outline_tells_a_blurred_image_by_its_edge_width():
     assert np.isnan(jpeg_like.edge_width_px) and not jpeg_like.blurred  # no edge-spread pass, no verdict
 
 
+@pytest.mark.parametrize("lean, strip", [(2.5, 1.5), (2.5, 2.2), (0.0, 0.0), (2.5, 0.0)])
+def test_a_distinct_side_strip_is_found_in_a_blurred_image(lean, strip):
+    """A renderer's pixel filter (here a Gaussian of σ = 0.6 px on linear light, as Mitsuba 3's
+    default) makes every edge read as blurred. A side face 1.5–2.2 px wide, darker than the front
+    face beside a grey outside (a colour off the line between the two, which no blur of them makes),
+    is still read as a strip: the right side lies on the front face's edge, not at the strip's outer
+    edge. Without the strip, the blur's tails are not read as one. (Not yet: the same strips beside
+    an upright side, whose pixels sample one phase of the edge; its one-step fit in full colour puts
+    the edge beyond the profile's reach.)"""
+    from scipy import ndimage
+    u0, v0 = 70.3, 30.4
+    c = FakeCube((u0, v0), (u0 + 14.6, v0 + 0.3), (u0 + 14.6 + lean, v0 + 92.0), (u0 + lean, v0 + 91.6),
+                 albedo=COLOURS["green"], front_shade=0.7, side_shade=0.35,
+                 side="right" if strip else None, side_width=strip or 1.0)
+    image, _ = make_image((150, 150), [c], background="grey")
+    soft = linear_to_srgb(ndimage.gaussian_filter(srgb_to_linear(image), sigma=(0.6, 0.6, 0)))
+    soft = np.round(np.clip(soft, 0.0, 1.0) * 255.0) / 255.0  # an 8-bit image
+    o = face_outline(soft, pixel_truth(image.shape[:2], c, "face"))
+    assert o, getattr(o, "reason", "")
+    assert o.blurred
+    offsets = _mean_side_offsets(o, c)
+    assert np.all(np.abs(offsets) < 0.25), offsets
+    if strip:
+        assert o.strip_px[1] == pytest.approx(strip, abs=0.4)
+    assert np.all(o.strip_px[[0, 2, 3]] == 0.0) and (strip or o.strip_px[1] == 0.0)
+
+
 def _mean_side_offsets(outline, cube):
     """Mean signed distance (px, positive outward) of each side's edge points from the true side."""
     left, right, top, bottom = outline.sides
