@@ -451,7 +451,8 @@ def _side_plane_w(points, directions, c, axes, side_sign, size) -> np.ndarray:
 
 
 def _square_axes(rotvec: np.ndarray, base: np.ndarray) -> np.ndarray:
-    """Rows (e_vertical, e_horizontal, normal) of the face, rotated by `rotvec` ((3,) or (K, 3)) from `base`."""
+    """Rows (e_vertical, e_horizontal, normal) of the face, rotated by `rotvec` ((3,) or (K, 3))
+    from `base`."""
     return Rotation.from_rotvec(rotvec).as_matrix() @ base.T
 
 
@@ -461,7 +462,8 @@ def _face_coords(origins, directions, c, axes):
     e_a, e_b, n = axes[..., 0, :], axes[..., 1, :], axes[..., 2, :]
     with np.errstate(divide="ignore", invalid="ignore"):
         t = -_along(origins, n, c) / (n @ directions.T)
-    return _along(origins, e_a, c) + t * (e_a @ directions.T), _along(origins, e_b, c) + t * (e_b @ directions.T)
+    return (_along(origins, e_a, c) + t * (e_a @ directions.T),
+            _along(origins, e_b, c) + t * (e_b @ directions.T))
 
 
 # The cube in its front face's frame, in units of the edge length: vertices (a, b, w) with a along
@@ -591,7 +593,6 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         return (xs[:, :3], c, s) if np.ndim(x) == 2 else (xs[0, :3], c[0], float(s[0]))
 
     back_idx = np.flatnonzero(is_back)
-
     # The faces merged with the front face: a side face beside each contour side (counted only where
     # seen). The measured outline is the boundary of their union; `contour` gives it.
     merged = [(_FRONT, None, 0.0)] + [(_FACES[sign[k] > 0], 1, sign[k]) for k in contour_sides]

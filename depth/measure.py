@@ -1371,11 +1371,10 @@ _ESF_SCALES = np.arange(0.6, 1.81, 0.2)  # ramp widths tried (px): sharper or bl
 def _esf_side(linear, lines, quads, corners, i, inner, margin, min_contrast):
     """`_esf_side_mode` on chroma (blind to a grey background's texture), then on the full
     colour (which sees a strip of the face's chroma but another brightness against grey) where
-    chroma finds no strip."""
+    chroma finds no strip or no distinct one (a darker strip of the face's hue lies, in chroma, on
+    the line between the face and a grey outside: distinct only in full colour)."""
     res = _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast, True)
     if res is None or res[1] == 0.0 or not res[5]:
-        # (a strip of the face's chroma but another brightness lies on the line between the face's
-        # chroma and a grey outside's: distinct, in a blurred image, only in full colour)
         full = _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast, False)
         if full is not None and (res is None or (full[1] > 0.0 and (res[1] == 0.0 or full[5]))
                                  or (full[4] is not None and res[4] is None)):
