@@ -1385,15 +1385,16 @@ def _esf_side(linear, lines, quads, corners, i, inner, margin, min_contrast):
 def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast, use_chroma):
     """Edge offset of side i from its pooled edge-spread function, or None when not measurable.
 
-    Returns (e, w, e_one, s, other, distinct): the face edge's outward offset e (px) from the fitted
-    side, the width w of an outer strip (0 when one step explains the profile), the one-step edge
-    e_one, the one-step ramp width s (px; > 1 for a blurred image), `other`, None or the (e, w) of
+    Returns (e, w, e_one, s, other, distinct, off): the face edge's outward offset e (px) from the
+    fitted side, the width w of an outer strip (0 when one step explains the profile), the one-step
+    edge e_one, the one-step ramp width s (px; > 1 for a blurred image), `other`, None or the (e, w) of
     the side's other reading where its profile is one off-colour pixel seen at a single phase: that
     pixel is as well a strip filling it as a mixed pixel of the face, a narrower strip and the
     outside, and a fit of one sample per pixel cannot tell them apart (its two-step misfit ties
     across w ≲ 1 px). Read as a strip, the other reading is (0, 0): the side where the per-point
     estimate put it. `distinct`: the strip found stands out even in a blurred image
-    (`_ESF_BLURRED_STRIP_OFF_COLOUR`).
+    (`_ESF_BLURRED_STRIP_OFF_COLOUR`). `off`: how far the strip's colour lies off the line between
+    the face's and the outside's, as a fraction of face − outside (0 without a strip).
 
     Pixels in the band around the side are reduced to a face-ness f (projection of the colour on
     c_face − c_out, both measured per station along the side: 1 on the face, 0 outside) and the
@@ -1518,8 +1519,8 @@ def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast
         # the outside, the strip's colour unknown; the face's edge may lie anywhere in that pixel
         if phases < 6 and W[g2] < _ESF_SINGLE_PIXEL_PX:
             other = (0.0, 0.0)  # one step: the per-point area estimate stands (as for w = 0 below)
-        return float(E[g2]), float(W[g2]), e_one, scale1, other, distinct
-    return e_one, 0.0, e_one, scale1, other, False
+        return float(E[g2]), float(W[g2]), e_one, scale1, other, distinct, float(np.linalg.norm(rho[g2]) / be2)
+    return e_one, 0.0, e_one, scale1, other, False, 0.0
 
 
 BLUR_EVIDENCE_MARGIN = 0.015
@@ -1641,10 +1642,18 @@ def _esf_pass(linear, model, min_contrast, margin=2.5, sides=range(4)):
     # blur's tails, which read as a strip themselves: only a distinct strip moves a side there
     ramp = float(min(r[3] for r in found.values())) if found else float("nan")
     blurred = ramp > BLURRED_RAMP_PX
+    # A cube shows at most one of its left and right faces and one of its top and bottom faces (the
+    # planes of each pair are parallel, and a small face's rays come from nearly one viewpoint, beyond
+    # at most one of them). Where both sides of a pair read as strips, one is something else: the
+    # tail of a blur whose ramp the face's sides could not show (upright sides sample one phase of the
+    # edge) or a background's texture. Either lies near the line between the face's colour and the
+    # outside's, where a face, lit on its own, does not: the strip nearer that line is read as one step.
+    strips = [i for i, r in found.items() if r[1] > 0 and (r[5] or not blurred)]
+    dropped = {min(pair, key=lambda k: found[k][6]) for pair in ((0, 1), (2, 3)) if all(k in strips for k in pair)}
     others = {}
     for i, res in found.items():
-        e, ws, e_one, _, other, distinct = res
-        if blurred and not distinct:
+        e, ws, e_one, _, other, distinct, _ = res
+        if (blurred and not distinct) or i in dropped:
             continue
         if other is not None:
             others[i] = other
