@@ -713,16 +713,19 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         return least_squares(lambda y: values(y[None])[0], y0, jac=jac, **kw)
 
     def covariance(j, r, n_params):
-        # Sandwich covariance with Σ = σ²·I + edge_bias_px²·(ones within each side): a common offset
-        # of a whole side is not averaged away by its many points.
+        # Sandwich covariance with Σ = σ²·I + b²·(ones within each side): a common offset of a whole
+        # side is not averaged away by its many points. b is the image's edge bias, or the rms misfit
+        # the fit leaves where that is larger: edges no square explains to within the bias are off
+        # by about that much (whole stretches of them, a side read on a neighbouring face's edge).
         n = len(sid)  # rows past the edge points: the hidden-side penalties (unit σ by construction)
         je, jp = j[:n], j[n:]
         sigma2 = float(r[:n] @ r[:n]) / max(n - n_params, 1)  # point scatter (pixels²)
+        bias2 = max(meas.edge_bias_px ** 2, float(np.mean(r[:n] ** 2)))
         jtj_inv = np.linalg.pinv(je.T @ je + jp.T @ jp)
         meat = sigma2 * (je.T @ je) + jp.T @ jp
         for side in range(6):
             g = je[sid == side].sum(axis=0)
-            meat += meas.edge_bias_px ** 2 * np.outer(g, g)
+            meat += bias2 * np.outer(g, g)
         return jtj_inv @ meat @ jtj_inv
 
     # The front face is the cube face nearest to facing the mirror: within 54.7° of it.

@@ -104,6 +104,25 @@ def test_uncertainty_covers_whole_side_offsets(rig):
     assert np.median(z_without) > 5 * np.median(z)
 
 
+@pytest.mark.parametrize("distance, azimuth, yaw", [(0.5, 12.0, 0.0), (0.6, -20.0, 0.0), (0.45, 5.0, 15.0),
+                                                     (0.7, 25.0, -10.0)])
+def test_uncertainty_covers_edges_that_no_square_explains(rig, distance, azimuth, yaw):
+    """The upper half of the left side read 1.5 px out (as on a neighbouring face's edge): no square
+    explains the edges (rms misfit ≈ 0.35 px, over twice the image's edge bias of 0.15 px). The per-side
+    bias is then at least that misfit, and σ covers the error: within 3σ (with the bias alone the
+    error was 3.5–4.1σ)."""
+    cube = rig.cube(distance, azimuth, yaw_deg=yaw)
+    meas = rig.measure(cube, gaps=True)
+    left = meas.sides_px[0].copy()
+    left[left[:, 1] < np.median(left[:, 1]), 0] -= 1.5
+    meas = dataclasses.replace(meas, sides_px=(left,) + tuple(meas.sides_px[1:]), edge_bias_px=0.15,
+                               edge_noise_px=0.02)
+    est = estimate_face(rig.rays, meas, method="exact")
+    assert est and est.rms_residual > 2 * 0.15
+    assert np.linalg.norm(est.center - cube.center) <= 3 * est.std["center"]
+    assert abs(est.size - cube.size) <= 3 * est.std["size"]
+
+
 def test_bad_arguments(rig):
     meas = rig.measure(rig.cube(0.5, 5.0))
     with pytest.raises(DepthError, match="method: expected one of ddar, dds, exact"):
