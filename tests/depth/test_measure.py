@@ -770,6 +770,29 @@ def test_a_face_shows_a_strip_on_one_of_its_left_and_right_sides_only():
         assert abs(np.mean(pts[:, 0] - u_true)) < reach
 
 
+BLUR_S07_4 = Path(__file__).resolve().parents[1] / "data" / "blur_s07_4.png"
+"""A 40×100 crop of the reconstruct bench's blur s07/4 image: one green cube, its front face 11.6 px
+wide, with a darker side face on its right and a bottom face below."""
+
+BLUR_S07_4_CORNERS = np.array([[23.8073, 80.9253], [12.1818, 83.0297], [12.1531, 11.2835], [23.7621, 8.7207]])
+"""Its front face's corners (px, in the crop) from the exact reflection of the cube's edges (`cube_truth`)."""
+
+
+def test_kinks_at_both_ends_of_a_blob_are_not_two_side_strips():
+    """The blob's top and bottom outlines turn near both ends (the front face's sloping top edge,
+    the bottom face's silhouette), which read as side strips at both ends and made three parts of
+    about a face's width: the cube was refused as two touching cubes. A cube shows at most one of
+    its left and right faces; its faces are then told by their brightness."""
+    import cv2
+    image = cv2.cvtColor(cv2.imread(str(BLUR_S07_4)), cv2.COLOR_BGR2RGB).astype(np.float64) / 255.0
+    (det,) = detect_cubes(image, np.ones(image.shape[:2], dtype=bool))
+    assert det.usable and det.reason is None, det.reason
+    o = face_outline(image, det.front_face_mask, blur_domain="linear")
+    assert o, getattr(o, "reason", "")
+    d = np.linalg.norm(o.corners_px[:, None] - BLUR_S07_4_CORNERS[None], axis=2)
+    assert d.min(axis=1).max() < 0.5
+
+
 def _mean_side_offsets(outline, cube):
     """Mean signed distance (px, positive outward) of each side's edge points from the true side."""
     left, right, top, bottom = outline.sides
