@@ -4,7 +4,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import example, given, settings, strategies as st
 
 from depth.errors import DepthError
 from depth.estimate import NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, estimate_face
@@ -546,6 +546,7 @@ def test_a_side_face_split_off_by_a_faint_step_is_merged_back():
 
 @settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 2 ** 32 - 1), k=st.integers(1, 4))
+@example(seed=471259, k=2)  # a ray near grazing a face (κ ≈ 1e5): failed a fixed 1e-12 on a fresh clone
 def test_face_frame_helpers_batched_match_plane_intersections(seed, k):
     # `exact` evaluates a pose and its finite-difference neighbours in one call: each batch row of
     # the face-frame helpers must be the ray/plane intersection of that face, computed here point by
@@ -564,15 +565,22 @@ def test_face_frame_helpers_batched_match_plane_intersections(seed, k):
     a, b = _face_coords(origins, directions, c, axes)
     w = _side_plane_w(origins, directions, c, axes, side_sign, size)
     assert a.shape == b.shape == w.shape == (k, 7)
+    eps = np.finfo(np.float64).eps
     for j in range(k):
         e_a, e_b, n = axes[j]
+        # a ray near grazing the plane meets it far away, where rounding in r·n (summed in another
+        # order) moves the point by ~ε·κ of its distance, κ = |r|/|r·n| (seed 471259: κ ≈ 1e5)
+        kappa = np.linalg.norm(directions, axis=1) / np.abs(directions @ n)
+        kappa_w = np.linalg.norm(directions, axis=1) / np.abs(directions @ e_b)
         for i in range(7):
             o, r = origins[i], directions[i]
             q = o + ((c[j] - o) @ n) / (r @ n) * r
-            assert a[j, i] == pytest.approx((q - c[j]) @ e_a, rel=1e-9, abs=1e-9)
-            assert b[j, i] == pytest.approx((q - c[j]) @ e_b, rel=1e-9, abs=1e-9)
+            rel = max(1e-9, 64 * eps * kappa[i])
+            assert a[j, i] == pytest.approx((q - c[j]) @ e_a, rel=rel, abs=1e-9)
+            assert b[j, i] == pytest.approx((q - c[j]) @ e_b, rel=rel, abs=1e-9)
             q = o + ((c[j] - o) @ e_b + side_sign[i] * size[j] / 2.0) / (r @ e_b) * r
-            assert w[j, i] == pytest.approx((q - c[j]) @ n, rel=1e-9, abs=1e-9)
-        # one face at a time gives the same row
+            assert w[j, i] == pytest.approx((q - c[j]) @ n, rel=max(1e-9, 64 * eps * kappa_w[i]), abs=1e-9)
+        # one face at a time gives the same row, to rounding
         a1, b1 = _face_coords(origins, directions, c[j], axes[j])
-        np.testing.assert_allclose(np.stack([a1, b1]), np.stack([a[j], b[j]]), rtol=1e-12, atol=1e-12)
+        tol = 16 * eps * kappa * (np.abs(np.stack([a[j], b[j]])) + 1.0)
+        assert np.all(np.abs(np.stack([a1, b1]) - np.stack([a[j], b[j]])) <= tol)
