@@ -1508,14 +1508,15 @@ def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast
               E[g2], W[g2], "noise", noise_var, "strip", np.round(strip_lvl, 3), "face", round(al2 + be2, 3), "ph", phases)
     accept = (gain > max(_ESF_MIN_GAIN * sse1, 40.0 * noise_var) and contrast >= _ESF_MIN_STRIP_CONTRAST * be2
               and be2 > 0.5 and W[g2] >= _ESF_MIN_STRIP_PX and E[g2] <= e_one - 0.15)
-    distinct = bool(accept and gain >= _ESF_BLURRED_STRIP_GAIN * sse1
-                    and np.linalg.norm(rho[g2]) >= _ESF_BLURRED_STRIP_OFF_COLOUR * be2)
+    # how far the strip's colour lies off the line between the face's and the outside's (of face − outside)
+    off = float(np.linalg.norm(rho[g2]) / be2) if be2 > 0 else 0.0
+    distinct = bool(accept and gain >= _ESF_BLURRED_STRIP_GAIN * sse1 and off >= _ESF_BLURRED_STRIP_OFF_COLOUR)
     other = None
     if accept and phases < 6:
         # one sample per pixel across the side: a mixed pixel and a strip of a colour between the
         # face's and the outside's look alike; believe a strip only when its colour is off that
         # line and it fills at least a pixel
-        off_colour = np.linalg.norm(rho[g2]) >= 0.03 * be2
+        off_colour = off >= 0.03
         accept = W[g2] >= 1.0 and off_colour
         if off_colour and not accept:  # an off-colour pixel read as mixed: a strip is the other reading
             other = (float(E[g2]), float(W[g2]))
@@ -1524,7 +1525,7 @@ def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast
         # the outside, the strip's colour unknown; the face's edge may lie anywhere in that pixel
         if phases < 6 and W[g2] < _ESF_SINGLE_PIXEL_PX:
             other = (0.0, 0.0)  # one step: the per-point area estimate stands (as for w = 0 below)
-        return float(E[g2]), float(W[g2]), e_one, scale1, other, distinct, float(np.linalg.norm(rho[g2]) / be2)
+        return float(E[g2]), float(W[g2]), e_one, scale1, other, distinct, off
     return e_one, 0.0, e_one, scale1, other, False, 0.0
 
 
@@ -1653,12 +1654,13 @@ def _esf_pass(linear, model, min_contrast, margin=2.5, sides=range(4)):
     # tail of a blur whose ramp the face's sides could not show (upright sides sample one phase of the
     # edge) or a background's texture. Either lies near the line between the face's colour and the
     # outside's, where a face, lit on its own, does not: the strip nearer that line is read as one step.
-    strips = [i for i, r in found.items() if r[1] > 0 and (r[5] or not blurred)]
-    dropped = {min(pair, key=lambda k: found[k][6]) for pair in ((0, 1), (2, 3)) if all(k in strips for k in pair)}
+    read = {i: r for i, r in found.items() if r[5] or not blurred}
+    strips = [i for i, r in read.items() if r[1] > 0]
+    dropped = {min(pair, key=lambda k: read[k][6]) for pair in ((0, 1), (2, 3)) if all(k in strips for k in pair)}
     others = {}
-    for i, res in found.items():
-        e, ws, e_one, _, other, distinct, _ = res
-        if (blurred and not distinct) or i in dropped:
+    for i, res in read.items():
+        e, ws, e_one, _, other, _, _ = res
+        if i in dropped:
             continue
         if other is not None:
             others[i] = other
