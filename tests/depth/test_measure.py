@@ -741,6 +741,12 @@ def test_a_distinct_side_strip_is_found_in_a_blurred_image(lean, strip):
     assert np.all(o.strip_px[[0, 2, 3]] == 0.0) and (strip or o.strip_px[1] == 0.0)
 
 
+def _bench_crop(path):
+    """A stored 8-bit RGB crop as the float64 sRGB image `depth.measure` takes."""
+    import cv2
+    return cv2.cvtColor(cv2.imread(str(path)), cv2.COLOR_BGR2RGB).astype(np.float64) / 255.0
+
+
 BLUR_S15_2 = Path(__file__).resolve().parents[1] / "data" / "blur_s15_2.png"
 """A 32×72 crop of the reconstruct bench's blur s15/2 image (our 16-spp render, Gaussian blur σ = 0.7 px of
 the stored values): one cyan cube, its front face 5.1 px wide, a side face showing on its right."""
@@ -757,8 +763,7 @@ def test_a_face_shows_a_strip_on_one_of_its_left_and_right_sides_only():
     right. The tail's colour lies near the line between the face's and the outside's (a side face,
     lit on its own, lies off it): the left side must stay on the face's edge (it was put 0.7 px
     inside, and the cube came out 47 % off)."""
-    import cv2
-    image = cv2.cvtColor(cv2.imread(str(BLUR_S15_2)), cv2.COLOR_BGR2RGB).astype(np.float64) / 255.0
+    image = _bench_crop(BLUR_S15_2)
     dets = [d for d in detect_cubes(image, np.ones(image.shape[:2], dtype=bool)) if d.usable]
     assert len(dets) == 1
     o = face_outline(image, dets[0].front_face_mask, blur_domain="linear")
@@ -783,8 +788,7 @@ def test_kinks_at_both_ends_of_a_blob_are_not_two_side_strips():
     the bottom face's silhouette), which read as side strips at both ends and made three parts of
     about a face's width: the cube was refused as two touching cubes. A cube shows at most one of
     its left and right faces; its faces are then told by their brightness."""
-    import cv2
-    image = cv2.cvtColor(cv2.imread(str(BLUR_S07_4)), cv2.COLOR_BGR2RGB).astype(np.float64) / 255.0
+    image = _bench_crop(BLUR_S07_4)
     (det,) = detect_cubes(image, np.ones(image.shape[:2], dtype=bool))
     assert det.usable and det.reason is None, det.reason
     o = face_outline(image, det.front_face_mask, blur_domain="linear")
