@@ -814,7 +814,7 @@ def face_outline(
     L = profile_half_width_px
     for half_width in (L, L, L, L):
         result = _refine(linear, model, half_width, corner_margin_px, min_contrast,
-                         min_points_per_side, spacing_px)
+                         min_points_per_side, spacing_px, two_point_sides=channels == "colour")
         if isinstance(result, FailedMeasurement):
             return result
         model = result
@@ -835,7 +835,7 @@ def face_outline(
         srgb = image[r0:r1, c0:c1]
         for half_width in (L + 0.5, L + 0.5):
             result = _refine(linear, model, half_width, corner_margin_px, min_contrast,
-                             min_points_per_side, spacing_px, encoded=srgb)
+                             min_points_per_side, spacing_px, encoded=srgb, two_point_sides=channels == "colour")
             if isinstance(result, FailedMeasurement):
                 break
             model = result
@@ -1022,6 +1022,7 @@ def _bilinear(img: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 _MIN_TB_POINTS = 3  # fewest edge points fitted on a top or bottom side (a line through them)
 _MIN_CORNER_MARGIN = 1.25  # px; nearer a corner, a top/bottom profile reaches across the left/right side
+_NARROW_TB_SAMPLES = 6  # a top/bottom side sampled at no more points than this is a narrow face's
 
 
 def _side_samples(lines, quads, corners, margin, spacing):
@@ -1183,7 +1184,7 @@ _ONE_STEP_TOLERANCE = 0.1  # change of the outside level a pixel farther out, as
 _ONE_STEP_SHARE = 0.7  # share of a side's points that must show one step for the encoded area
 
 
-def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing, encoded=None):
+def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing, encoded=None, two_point_sides=True):
     lines, quads, corners = model[:3]
     pts, nrm = _side_samples(lines, quads, corners, margin, spacing)
     h, w = linear.shape[:2]
@@ -1191,6 +1192,11 @@ def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing, en
     for i, (p, n) in enumerate(zip(pts, nrm)):
         name = SIDE_NAMES[i]
         min_points = min_lr if i < 2 else min(min_lr, _MIN_TB_POINTS)
+        if two_point_sides and i >= 2 and len(p) <= _NARROW_TB_SAMPLES:
+            # a face so narrow that its top or bottom side offers only a few samples (0.5 px apart
+            # between the corner margins): two edge points fix that side's line (not in a JPEG
+            # image, whose 8×8 blocks move single edge points by tenths of a pixel)
+            min_points = min(min_points, 2)
         inside = (
             (p[:, 0] - half_width >= 0) & (p[:, 0] + half_width <= w - 1)
             & (p[:, 1] - half_width >= 0) & (p[:, 1] + half_width <= h - 1)
