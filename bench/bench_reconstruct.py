@@ -115,6 +115,7 @@ def score(result_cubes: list, truth: list, kinds: list, turns: list, tol_px: flo
             row["centre_err"] = float(np.linalg.norm(np.subtract(c["center"], t["center"])) / t["depth"])
             row["size_err"] = float(c["size"] / t["size"] - 1.0)
             row["corner_err_px"] = _corner_error_px(np.asarray(c["front_face_corners_px"]), np.asarray(t["front_face_corners_px"]))
+            row["edge_misfit_px"] = c.get("edge_misfit_px")
             # error in units of the reported first-order standard deviation
             unc = c.get("uncertainty", {})
             for key in ("depth", "size"):
@@ -453,6 +454,34 @@ def corner_stats(result: dict, log=print) -> dict:
     return out
 
 
+def misfit_flags(result: dict, log=print) -> dict:
+    """How well `exact`'s edge-misfit flag (rms > `depth.estimate.EDGE_MISFIT_WARN_PX`) picks out the
+    cubes more than 3 % off, per variant and pooled."""
+    from depth.estimate import EDGE_MISFIT_WARN_PX
+    out = {}
+    log("")
+    log(f"exact's edge misfit (rms px) above {EDGE_MISFIT_WARN_PX} (flagged by catadioptric reconstruct) vs centre "
+        "error > 3 %: flagged (> 3 % off, median error) ; not flagged (> 3 % off) ; misfit median / max")
+    for v in VARIANTS + ("mitsuba", None):
+        cubes = [c for r in result["records"] if r["method"] == "exact" and (v is None or r["variant"] == v)
+                 for c in r["cubes"] if c["found"] and c.get("edge_misfit_px") is not None]
+        if not cubes:
+            continue
+        mis = np.array([c["edge_misfit_px"] for c in cubes])
+        err = np.array([c["centre_err"] for c in cubes])
+        flag = mis > EDGE_MISFIT_WARN_PX
+        row = {"flagged": int(flag.sum()), "flagged_over_3pct": int(np.sum(err[flag] > 0.03)),
+               "flagged_median_err": float(np.median(err[flag])) if flag.any() else None,
+               "unflagged": int((~flag).sum()), "unflagged_over_3pct": int(np.sum(err[~flag] > 0.03)),
+               "misfit_median_max": [float(np.median(mis)), float(mis.max())]}
+        out[v or "all"] = row
+        med = "—" if row["flagged_median_err"] is None else f"{100 * row['flagged_median_err']:.1f} %"
+        log(f"  {v or 'ALL':8s} {row['flagged']:3d} ({row['flagged_over_3pct']:3d}, {med:>7s}) ; "
+            f"{row['unflagged']:3d} ({row['unflagged_over_3pct']:3d}) ; {row['misfit_median_max'][0]:.3f} / "
+            f"{row['misfit_median_max'][1]:.3f}")
+    return out
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     quick = "--quick" in argv
@@ -463,9 +492,11 @@ def main(argv=None) -> int:
     summary = report(result)
     corners = corner_stats(result)
     calib = calibration(result)
+    flags = misfit_flags(result)
     fails = failures(result, "exact")
     OUT.mkdir(parents=True, exist_ok=True)
-    out = {"summary": summary, "corner_error_px": corners, "calibration": calib, "failures_exact": fails, **result}
+    out = {"summary": summary, "corner_error_px": corners, "calibration": calib, "misfit_flags": flags,
+           "failures_exact": fails, **result}
     (OUT / "reconstruct.json").write_text(json.dumps(out, indent=1, default=float) + "\n")
     print(f"\nwrote {OUT / 'reconstruct.json'}; total {time.perf_counter() - t:.0f} s")
     return 0

@@ -115,16 +115,21 @@ def draw_overlay(image: np.ndarray, rec) -> np.ndarray:
 def print_table(console, result: dict, truth: dict | None = None) -> None:
     """A rich table of the cubes (with errors against `truth` cubes when given)."""
     from rich.table import Table
+
+    from depth.estimate import EDGE_MISFIT_WARN_PX
     t = Table(title=f"{result['image']}: {len(result['cubes'])} cube(s), method {result['method']}")
-    cols = ["#", "depth (m)", "±σ (m)", "size (m)", "centre (m)", "AR r_i"]
+    cols = ["#", "depth (m)", "±σ (m)", "size (m)", "centre (m)", "AR r_i", "edge misfit (px)"]
     if truth:
         cols += ["true depth", "centre err", "size err"]
     for c in cols:
         t.add_column(c, justify="right")
     matches = match_truth(result, truth) if truth else [None] * len(result["cubes"])
     for i, (c, tc) in enumerate(zip(result["cubes"], matches)):
+        misfit = c.get("edge_misfit_px")
+        flagged = misfit is not None and misfit > EDGE_MISFIT_WARN_PX
         row = [str(i), f"{c['depth']:.4f}", f"{c['uncertainty']['depth']:.4f}", f"{c['size']:.4f}",
-               "[" + ", ".join(f"{x:+.3f}" for x in c["center"]) + "]", f"{c['aspect_ratio']:.3f}"]
+               "[" + ", ".join(f"{x:+.3f}" for x in c["center"]) + "]", f"{c['aspect_ratio']:.3f}",
+               "—" if misfit is None else f"{misfit:.2f}" + (" !" if flagged else "")]
         if truth:
             if tc is None:
                 row += ["—", "—", "—"]
@@ -133,6 +138,10 @@ def print_table(console, result: dict, truth: dict | None = None) -> None:
                 row += [f"{tc['depth']:.4f}", f"{100 * err:.2f} %", f"{100 * (c['size'] / tc['size'] - 1):+.2f} %"]
         t.add_row(*row)
     console.print(t)
+    if any(c.get("edge_misfit_px") is not None and c["edge_misfit_px"] > EDGE_MISFIT_WARN_PX
+           for c in result["cubes"]):
+        console.print(f"! the face's edges miss the fitted square by more than {EDGE_MISFIT_WARN_PX} px rms: "
+                      "its outline is likely off somewhere and ±σ may be short")
     for r in result.get("refused", []):
         console.print(f"refused cube at {r['bbox_px']}: {r['reason']}")
 

@@ -52,6 +52,8 @@ class CubeResult:
             "front_face_normal": [float(x) for x in e.normal],
             "local_xslit": e.xslit,
             "edge_points": int(self.edge_points),
+            # rms distance (px) of the edge points from the fitted face (`exact` only; null otherwise)
+            "edge_misfit_px": float(e.rms_residual) if e.method == "exact" else None,
             "bbox_px": [int(x) for x in self.bbox],
         }
 

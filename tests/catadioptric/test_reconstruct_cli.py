@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from catadioptric.cli import main
+from depth.estimate import EDGE_MISFIT_WARN_PX
 
 CONTRACT_KEYS = {"center", "size", "depth", "front_face_center", "front_face_corners_px", "aspect_ratio",
                  "method", "uncertainty"}
@@ -53,6 +54,9 @@ def test_result_follows_the_contract_and_is_accurate(scene, capsys):
         assert np.linalg.norm(np.subtract(cube["center"], t["center"])) / t["depth"] < 0.05
         assert cube["size"] == pytest.approx(0.04, rel=0.05)
         assert cube["depth"] == pytest.approx(np.hypot(cube["center"][0], cube["center"][2]), rel=1e-9)
+        # a clean render's edges fit a square to a tenth of a pixel: no flag
+        assert 0.0 < cube["edge_misfit_px"] < EDGE_MISFIT_WARN_PX
+    assert "misfit" in printed and "may be short" not in printed
     overlay = cv2.imread(str(scene / "ov.png"))
     assert overlay.shape == (480, 640, 3)
     b, g, r = overlay[..., 0].astype(int), overlay[..., 1].astype(int), overlay[..., 2].astype(int)
@@ -65,6 +69,28 @@ def test_other_methods_run(scene, method):
     assert main(["reconstruct", str(scene / "mirror.png"), "--method", method, "-o", str(out)]) == 0
     cubes = json.loads(out.read_text())["cubes"]
     assert len(cubes) == 2 and all(c["method"] == method for c in cubes)
+    assert all(c["edge_misfit_px"] is None for c in cubes)  # an edge misfit in pixels is `exact`'s
+
+
+def test_the_table_flags_a_face_whose_edges_no_square_explains(scene):
+    """A cube whose edge points miss the fitted square by more than EDGE_MISFIT_WARN_PX rms is marked,
+    with a line saying what that means; the others are not."""
+    import io
+
+    from rich.console import Console
+
+    from catadioptric.reconstruct import print_table
+    out = scene / "flag.json"
+    assert main(["reconstruct", str(scene / "mirror.png"), "-o", str(out)]) == 0
+    result = json.loads(out.read_text())
+    for misfits, flagged in (((0.05, 0.08), False), ((0.05, 2.0 * EDGE_MISFIT_WARN_PX), True)):
+        for c, m in zip(result["cubes"], misfits):
+            c["edge_misfit_px"] = m
+        buf = io.StringIO()
+        print_table(Console(file=buf, width=200), result)
+        text = buf.getvalue()
+        assert ("may be short" in text) == flagged
+        assert (f"{2.0 * EDGE_MISFIT_WARN_PX:.2f} !" in text) == flagged and "0.05 !" not in text
 
 
 def _bad(capsys, tmp_path, argv, message):
