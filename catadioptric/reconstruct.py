@@ -90,19 +90,29 @@ def result_dict(image_path, setup_path, rec) -> dict:
     return out
 
 
+OVERLAY_FACE = (255, 255, 0)
+"""Colour (RGB) of a face outline on the overlay."""
+OVERLAY_FLAGGED = (255, 140, 0)
+"""Colour (RGB) of a face outline whose edges no square explains well (`depth.estimate.EDGE_MISFIT_WARN_PX`)."""
+
+
 def draw_overlay(image: np.ndarray, rec) -> np.ndarray:
     """The image with each face outline, its corners and its depth drawn on it : (H, W, 3) uint8 RGB."""
     out = image.copy()
     outline = cv2.dilate(rec.mirror_mask.astype(np.uint8), np.ones((3, 3), np.uint8)) - rec.mirror_mask.astype(np.uint8)
     out[outline > 0] = (255, 255, 255)
+    from depth.estimate import EDGE_MISFIT_WARN_PX
     scale = 8  # sub-pixel drawing: coordinates in 1/8 px
     for c in rec.cubes:
+        # a fit whose edges miss its face by more than EDGE_MISFIT_WARN_PX rms: orange, and "!" by its depth
+        flagged = c.estimate.method == "exact" and c.estimate.rms_residual > EDGE_MISFIT_WARN_PX
         pts = np.round((c.corners_px + 0.5) * scale - 0.5).astype(np.int32)  # pixel centres → cv2 coords
-        cv2.polylines(out, [pts.reshape(-1, 1, 2)], True, (255, 255, 0), 1, cv2.LINE_AA, shift=3)
+        cv2.polylines(out, [pts.reshape(-1, 1, 2)], True, OVERLAY_FLAGGED if flagged else OVERLAY_FACE, 1,
+                      cv2.LINE_AA, shift=3)
         for p in pts:
             cv2.circle(out, tuple(int(v) for v in p), 3 * scale, (255, 0, 255), 1, cv2.LINE_AA, shift=3)
         x0, y0 = c.bbox[0], max(c.bbox[1] - 8, 12)
-        label = f"{c.depth:.3f} m"
+        label = f"{c.depth:.3f} m" + (" !" if flagged else "")
         cv2.putText(out, label, (x0, y0), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 3, cv2.LINE_AA)
         cv2.putText(out, label, (x0, y0), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1, cv2.LINE_AA)
     for r in rec.refused:

@@ -195,3 +195,28 @@ def test_cubes_of_the_default_grey_are_reconstructed(tmp_path, capsys):
         t = min(truth["cubes"], key=lambda t: np.linalg.norm(np.subtract(t["center"], cube["center"])))
         assert np.linalg.norm(np.subtract(cube["center"], t["center"])) / t["depth"] < 0.05
         assert abs(cube["depth"] - t["depth"]) < 3.0 * cube["uncertainty"]["depth"]
+
+
+def test_the_overlay_draws_a_flagged_face_in_orange(scene):
+    """A cube whose edges miss its fitted face by more than EDGE_MISFIT_WARN_PX is outlined in
+    OVERLAY_FLAGGED, not OVERLAY_FACE; the others keep the usual colour."""
+    import dataclasses
+
+    from catadioptric.reconstruct import OVERLAY_FACE, OVERLAY_FLAGGED, draw_overlay, read_image
+    from catadioptric.setup import load_setup
+    from depth.reconstruct import reconstruct
+    setup = load_setup(scene / "in.toml")
+    image = read_image(scene / "mirror.png")
+    rec = reconstruct(image, setup.camera.build(), setup.mirror.build())
+    assert len(rec.cubes) == 2
+
+    def count(img, rgb):  # drawn pixels (anti-aliased) within 40 of the colour
+        near = np.linalg.norm(img.astype(float) - np.array(rgb, dtype=float), axis=-1) < 40
+        return int(np.count_nonzero(near & np.any(img != image, axis=-1)))
+
+    plain = draw_overlay(image, rec)
+    assert count(plain, OVERLAY_FACE) > 20 and count(plain, OVERLAY_FLAGGED) == 0
+    bad = dataclasses.replace(rec.cubes[0], estimate=dataclasses.replace(rec.cubes[0].estimate,
+                                                                         rms_residual=2.0 * EDGE_MISFIT_WARN_PX))
+    marked = draw_overlay(image, dataclasses.replace(rec, cubes=[bad, rec.cubes[1]]))
+    assert count(marked, OVERLAY_FLAGGED) > 20 and count(marked, OVERLAY_FACE) > 20
