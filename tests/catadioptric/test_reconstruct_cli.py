@@ -124,6 +124,7 @@ def test_bad_inputs_exit_1_with_one_line_and_write_nothing(scene, capsys, tmp_pa
     _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "junk.png"), "--setup", str(setup), "-o", out],
          "cannot read the image")
     import tomllib
+
     import tomli_w
     d = tomllib.loads(setup.read_text())
     del d["mirror"]
@@ -202,7 +203,12 @@ def test_the_overlay_draws_a_flagged_face_in_orange(scene):
     OVERLAY_FLAGGED, not OVERLAY_FACE; the others keep the usual colour."""
     import dataclasses
 
-    from catadioptric.reconstruct import OVERLAY_FACE, OVERLAY_FLAGGED, draw_overlay, read_image
+    from catadioptric.reconstruct import (
+        OVERLAY_FACE,
+        OVERLAY_FLAGGED,
+        draw_overlay,
+        read_image,
+    )
     from catadioptric.setup import load_setup
     from depth.reconstruct import reconstruct
     setup = load_setup(scene / "in.toml")
