@@ -97,7 +97,10 @@ OVERLAY_FLAGGED = (255, 140, 0)
 
 
 def draw_overlay(image: np.ndarray, rec) -> np.ndarray:
-    """The image with each face outline, its corners and its depth drawn on it : (H, W, 3) uint8 RGB."""
+    """The image with each face outline, its corners and its depth drawn on it : (H, W, 3) uint8 RGB.
+
+    `rec`: a `depth.reconstruct.Reconstruction`, or anything with its `mirror_mask`, `refused` (each with
+    `bbox`) and `cubes` (each with `corners_px`, `bbox`, `depth` and, optionally, `edge_misfit_px`)."""
     out = image.copy()
     outline = cv2.dilate(rec.mirror_mask.astype(np.uint8), np.ones((3, 3), np.uint8)) - rec.mirror_mask.astype(np.uint8)
     out[outline > 0] = (255, 255, 255)
@@ -105,7 +108,8 @@ def draw_overlay(image: np.ndarray, rec) -> np.ndarray:
     scale = 8  # sub-pixel drawing: coordinates in 1/8 px
     for c in rec.cubes:
         # a fit whose edges miss its face by more than EDGE_MISFIT_WARN_PX rms: orange, and "!" by its depth
-        flagged = c.estimate.method == "exact" and c.estimate.rms_residual > EDGE_MISFIT_WARN_PX
+        misfit = getattr(c, "edge_misfit_px", None)
+        flagged = misfit is not None and misfit > EDGE_MISFIT_WARN_PX
         pts = np.round((c.corners_px + 0.5) * scale - 0.5).astype(np.int32)  # pixel centres → cv2 coords
         cv2.polylines(out, [pts.reshape(-1, 1, 2)], True, OVERLAY_FLAGGED if flagged else OVERLAY_FACE, 1,
                       cv2.LINE_AA, shift=3)

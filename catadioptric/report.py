@@ -152,7 +152,8 @@ def _overlay_source(inp: ReportInput, hit_mask: np.ndarray):
         px = np.asarray(c["front_face_corners_px"], dtype=np.float64)
         bbox = c.get("bbox_px") or [int(px[:, 0].min()), int(px[:, 1].min()), int(px[:, 0].max()) + 1,
                                     int(px[:, 1].max()) + 1]
-        cubes.append(SimpleNamespace(corners_px=px, bbox=tuple(int(x) for x in bbox), depth=float(c["depth"])))
+        cubes.append(SimpleNamespace(corners_px=px, bbox=tuple(int(x) for x in bbox), depth=float(c["depth"]),
+                                     edge_misfit_px=c.get("edge_misfit_px")))
     refused = [SimpleNamespace(bbox=tuple(int(x) for x in r["bbox_px"])) for r in inp.result.get("refused", [])
                if isinstance(r, dict) and len(r.get("bbox_px", [])) == 4]
     return SimpleNamespace(cubes=cubes, refused=refused, mirror_mask=hit_mask)

@@ -36,6 +36,11 @@ class CubeResult:
     bbox: tuple
     edge_points: int
 
+    @property
+    def edge_misfit_px(self) -> float | None:
+        """Rms distance (px) of the edge points from the fitted face: `exact`'s; None for the other methods."""
+        return float(self.estimate.rms_residual) if self.estimate.method == "exact" else None
+
     def to_dict(self) -> dict:
         """The per-cube keys of SETUP_FORMAT.md's result, plus diagnostics (added keys only)."""
         e = self.estimate
@@ -52,8 +57,7 @@ class CubeResult:
             "front_face_normal": [float(x) for x in e.normal],
             "local_xslit": e.xslit,
             "edge_points": int(self.edge_points),
-            # rms distance (px) of the edge points from the fitted face (`exact` only; null otherwise)
-            "edge_misfit_px": float(e.rms_residual) if e.method == "exact" else None,
+            "edge_misfit_px": self.edge_misfit_px,
             "bbox_px": [int(x) for x in self.bbox],
         }
 

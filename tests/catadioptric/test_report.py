@@ -298,6 +298,18 @@ def test_report_from_result_json_and_without_the_image(sim, tmp_path):
     assert main(["reconstruct", str(tmp_path / "s.png"), "-o", str(res)]) == 0
     index = report.report(res, tmp_path / "a", window_size=WINDOW)
     assert (tmp_path / "a" / "annotated.png").is_file() and index.is_file()
+    # A cube the result flags (edge misfit above EDGE_MISFIT_WARN_PX) is outlined in orange there too.
+    from catadioptric.reconstruct import OVERLAY_FLAGGED
+    from depth.estimate import EDGE_MISFIT_WARN_PX
+    plain = read_png(tmp_path / "a" / "annotated.png").astype(float)
+    data = json.loads(res.read_text())
+    data["cubes"][0]["edge_misfit_px"] = 2.0 * EDGE_MISFIT_WARN_PX
+    res.write_text(json.dumps(data))
+    report.report(res, tmp_path / "f", window_size=WINDOW)
+    marked = read_png(tmp_path / "f" / "annotated.png").astype(float)
+    for img, n in ((plain, 0), (marked, 20)):
+        orange = np.linalg.norm(img - np.array(OVERLAY_FLAGGED, dtype=float), axis=-1) < 40
+        assert (np.count_nonzero(orange) > n) == (n > 0)
     # Without the image beside it: a note and no annotated picture, the rest as usual.
     (tmp_path / "s.png").unlink()
     report.report(res, tmp_path / "b", window_size=WINDOW)
