@@ -132,11 +132,11 @@ def print_table(console, result: dict, truth: dict | None = None) -> None:
 
     from depth.estimate import EDGE_MISFIT_WARN_PX
     t = Table(title=f"{result['image']}: {len(result['cubes'])} cube(s), method {result['method']}")
-    cols = ["#", "depth (m)", "±σ (m)", "size (m)", "centre (m)", "AR r_i", "edge misfit (px)"]
+    cols = ["#", "depth (m)", "±σ (m)", "size (m)", "centre (m)", "AR r_i", "misfit"]
     if truth:
         cols += ["true depth", "centre err", "size err"]
     for c in cols:
-        t.add_column(c, justify="right")
+        t.add_column(c, justify="right", no_wrap=c == "centre (m)")  # a 3-vector reads badly split
     matches = match_truth(result, truth) if truth else [None] * len(result["cubes"])
     for i, (c, tc) in enumerate(zip(result["cubes"], matches)):
         misfit = c.get("edge_misfit_px")
@@ -151,6 +151,8 @@ def print_table(console, result: dict, truth: dict | None = None) -> None:
                 err = np.linalg.norm(np.subtract(c["center"], tc["center"])) / tc["depth"]
                 row += [f"{tc['depth']:.4f}", f"{100 * err:.2f} %", f"{100 * (c['size'] / tc['size'] - 1):+.2f} %"]
         t.add_row(*row)
+    if any(c.get("edge_misfit_px") is not None for c in result["cubes"]):
+        t.caption = "misfit: rms distance (px) of the face's edge points from the fitted square"
     console.print(t)
     if any(c.get("edge_misfit_px") is not None and c["edge_misfit_px"] > EDGE_MISFIT_WARN_PX
            for c in result["cubes"]):
