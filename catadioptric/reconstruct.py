@@ -138,9 +138,9 @@ def print_table(console, result: dict, truth: dict | None = None) -> None:
     for c in cols:
         t.add_column(c, justify="right", no_wrap=c == "centre (m)")  # a 3-vector reads badly split
     matches = match_truth(result, truth) if truth else [None] * len(result["cubes"])
-    for i, (c, tc) in enumerate(zip(result["cubes"], matches)):
-        misfit = c.get("edge_misfit_px")
-        flagged = misfit is not None and misfit > EDGE_MISFIT_WARN_PX
+    misfits = [c.get("edge_misfit_px") for c in result["cubes"]]  # `exact`'s; None for the other methods
+    flags = [m is not None and m > EDGE_MISFIT_WARN_PX for m in misfits]
+    for i, (c, tc, misfit, flagged) in enumerate(zip(result["cubes"], matches, misfits, flags)):
         row = [str(i), f"{c['depth']:.4f}", f"{c['uncertainty']['depth']:.4f}", f"{c['size']:.4f}",
                "[" + ", ".join(f"{x:+.3f}" for x in c["center"]) + "]", f"{c['aspect_ratio']:.3f}",
                "—" if misfit is None else f"{misfit:.2f}" + (" !" if flagged else "")]
@@ -151,11 +151,10 @@ def print_table(console, result: dict, truth: dict | None = None) -> None:
                 err = np.linalg.norm(np.subtract(c["center"], tc["center"])) / tc["depth"]
                 row += [f"{tc['depth']:.4f}", f"{100 * err:.2f} %", f"{100 * (c['size'] / tc['size'] - 1):+.2f} %"]
         t.add_row(*row)
-    if any(c.get("edge_misfit_px") is not None for c in result["cubes"]):
+    if any(m is not None for m in misfits):
         t.caption = "misfit: rms distance (px) of the face's edge points from the fitted square"
     console.print(t)
-    if any(c.get("edge_misfit_px") is not None and c["edge_misfit_px"] > EDGE_MISFIT_WARN_PX
-           for c in result["cubes"]):
+    if any(flags):
         console.print(f"! the face's edges miss the fitted square by more than {EDGE_MISFIT_WARN_PX} px rms: "
                       "its outline is likely off somewhere and ±σ may be short")
     for r in result.get("refused", []):
