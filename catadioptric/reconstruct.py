@@ -104,12 +104,11 @@ def draw_overlay(image: np.ndarray, rec) -> np.ndarray:
     out = image.copy()
     outline = cv2.dilate(rec.mirror_mask.astype(np.uint8), np.ones((3, 3), np.uint8)) - rec.mirror_mask.astype(np.uint8)
     out[outline > 0] = (255, 255, 255)
-    from depth.estimate import EDGE_MISFIT_WARN_PX
+    from depth.estimate import edge_misfit_flagged
     scale = 8  # sub-pixel drawing: coordinates in 1/8 px
     for c in rec.cubes:
         # a fit whose edges miss its face by more than EDGE_MISFIT_WARN_PX rms: orange, and "!" by its depth
-        misfit = getattr(c, "edge_misfit_px", None)
-        flagged = misfit is not None and misfit > EDGE_MISFIT_WARN_PX
+        flagged = edge_misfit_flagged(getattr(c, "edge_misfit_px", None))
         pts = np.round((c.corners_px + 0.5) * scale - 0.5).astype(np.int32)  # pixel centres → cv2 coords
         cv2.polylines(out, [pts.reshape(-1, 1, 2)], True, OVERLAY_FLAGGED if flagged else OVERLAY_FACE, 1,
                       cv2.LINE_AA, shift=3)
@@ -130,7 +129,7 @@ def print_table(console, result: dict, truth: dict | None = None) -> None:
     """A rich table of the cubes (with errors against `truth` cubes when given)."""
     from rich.table import Table
 
-    from depth.estimate import EDGE_MISFIT_WARN_PX
+    from depth.estimate import EDGE_MISFIT_WARN_PX, edge_misfit_flagged
     t = Table(title=f"{result['image']}: {len(result['cubes'])} cube(s), method {result['method']}")
     cols = ["#", "depth (m)", "±σ (m)", "size (m)", "centre (m)", "AR r_i", "misfit"]
     if truth:
@@ -139,7 +138,7 @@ def print_table(console, result: dict, truth: dict | None = None) -> None:
         t.add_column(c, justify="right", no_wrap=c == "centre (m)")  # a 3-vector reads badly split
     matches = match_truth(result, truth) if truth else [None] * len(result["cubes"])
     misfits = [c.get("edge_misfit_px") for c in result["cubes"]]  # `exact`'s; None for the other methods
-    flags = [m is not None and m > EDGE_MISFIT_WARN_PX for m in misfits]
+    flags = [edge_misfit_flagged(m) for m in misfits]
     for i, (c, tc, misfit, flagged) in enumerate(zip(result["cubes"], matches, misfits, flags)):
         row = [str(i), f"{c['depth']:.4f}", f"{c['uncertainty']['depth']:.4f}", f"{c['size']:.4f}",
                "[" + ", ".join(f"{x:+.3f}" for x in c["center"]) + "]", f"{c['aspect_ratio']:.3f}",

@@ -70,6 +70,12 @@ renders, 0.31 px with noise and 0.99 px in JPEG; 9 of 325 cubes lie above 0.3 px
 3 % off (median 7.9 %; one noise, the rest JPEG). Below it lie the other 57 cubes more than 3 % off
 (small far faces, turn ambiguities): the flag finds gross outline failures, not every large error."""
 
+
+def edge_misfit_flagged(misfit_px: float | None) -> bool:
+    """Whether an edge misfit (`CubeResult.edge_misfit_px`; None for methods other than `exact`) is
+    above `EDGE_MISFIT_WARN_PX`."""
+    return misfit_px is not None and misfit_px > EDGE_MISFIT_WARN_PX
+
 PROFILE_STEP = np.deg2rad(2.0)
 """Step of the turn profile `exact` runs for a face with merged faces (the turn is then poorly fixed)."""
 

@@ -812,9 +812,10 @@ def face_outline(
     if isinstance(model, FailedMeasurement):
         return model
     L = profile_half_width_px
+    two_point_sides = channels == "colour"  # not for JPEG (luma): see `_refine`
     for half_width in (L, L, L, L):
         result = _refine(linear, model, half_width, corner_margin_px, min_contrast,
-                         min_points_per_side, spacing_px, two_point_sides=channels == "colour")
+                         min_points_per_side, spacing_px, two_point_sides=two_point_sides)
         if isinstance(result, FailedMeasurement):
             return result
         model = result
@@ -835,7 +836,7 @@ def face_outline(
         srgb = image[r0:r1, c0:c1]
         for half_width in (L + 0.5, L + 0.5):
             result = _refine(linear, model, half_width, corner_margin_px, min_contrast,
-                             min_points_per_side, spacing_px, encoded=srgb, two_point_sides=channels == "colour")
+                             min_points_per_side, spacing_px, encoded=srgb, two_point_sides=two_point_sides)
             if isinstance(result, FailedMeasurement):
                 break
             model = result
