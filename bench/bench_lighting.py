@@ -10,7 +10,11 @@ Mitsuba 3 (`scalar_rgb`, 16 spp, Gaussian pixel filter) under three lights:
   case for telling the front face from the others;
 - ``sun-low-side``: a low sun from the side, weak sky;
 - ``sun-front grey``: the first light again, the cubes painted white, grey and black in turn
-  (`GREYS`): found only by their difference from the uniform sky seen in the mirror.
+  (`GREYS`): found only by their difference from the uniform sky seen in the mirror;
+- ``floor, any sun``: 12 more scenes (`make_scenes(12, seed=31415)`) standing on a grey floor
+  (the mirror reflects it under the cubes, and the cubes and the mirror cast shadows), under a sky
+  that brightens toward the zenith and varies with azimuth, and a sun from a direction drawn per
+  scene, behind the mirror as often as in front (`floor_render`).
 
 and runs `depth.reconstruct` (`exact`) on each image. Per light it prints recall, false positives,
 the median / 90th percentile / max of the centre error ‖ĉ − c‖ / (distance of c to the axis), the
@@ -30,6 +34,7 @@ LIGHTS = {  # sun travel direction, sun irradiance, sky radiance
     "sun-low-side": ((1.0, -0.3, 0.1), 2.5, 0.25),
 }
 MATCH_PX = 20.0
+FLOOR_SEED, FLOOR_N = 31415, 12
 GREYS = ((0.9, 0.9, 0.9), (0.45, 0.45, 0.45), (0.06, 0.06, 0.06))
 """Albedos given in turn to the cubes of the grey run: white, grey and black (no colour to find them by)."""
 
@@ -41,36 +46,69 @@ def greyed(setup):
     return dataclasses.replace(setup, objects=objects)
 
 
-def render(setup, light: str) -> np.ndarray:
-    """Mitsuba render of `setup` under `light` (uint8 sRGB), from the cache when there."""
+def _mitsuba(setup, key: str, name: str, travel, sun: float, sky: float, **extra) -> np.ndarray:
+    """Mitsuba render (uint8 sRGB) of `setup` with a sun and a sky (`mitsuba_scenes.scene_dict`, with
+    `extra`), cached in bench/out/renders/ under `setup`'s hash with `key` and the file suffix `name`."""
     import mitsuba as mi
+
     from bench import mitsuba_scenes as ms
     from bench.bench_reconstruct import OUT, _cached
     from bench.scenes import scene_hash
     from raytrace.render import linear_to_srgb8
-    travel, sun, sky = LIGHTS[light]
-    key = scene_hash(setup, f"mitsuba-spp{ms.SPP}-{light}-{travel}-{sun}-{sky}")
 
     def make():
         mi.set_variant("scalar_rgb")
         scene = setup.build_scene()
         d = ms.scene_dict(setup.camera.build(), scene.mirror, scene.objects, ms.SPP, travel, sun, sky,
-                          rfilter="gaussian")
+                          rfilter="gaussian", **extra)
         return linear_to_srgb8(np.asarray(mi.render(mi.load_dict(d), seed=0), dtype=np.float64)[:, :, :3])
-    return _cached(OUT / "renders" / f"{key}-mitsuba-{light}.png", make)
+    return _cached(OUT / "renders" / f"{scene_hash(setup, f'mitsuba-spp{ms.SPP}-{key}')}-mitsuba-{name}.png", make)
+
+
+def render(setup, light: str) -> np.ndarray:
+    """Mitsuba render of `setup` under `light` (uint8 sRGB), from the cache when there."""
+    travel, sun, sky = LIGHTS[light]
+    return _mitsuba(setup, f"{light}-{travel}-{sun}-{sky}", light, travel, sun, sky)
+
+
+def sky_map(height: int = 64, width: int = 128) -> np.ndarray:
+    """An equirectangular sky (linear radiance, +y up): blue-grey at the zenith, bright at the
+    horizon, brown below it, ±30 % with azimuth (three lobes)."""
+    elevation = np.linspace(1.0, -1.0, height)[:, None, None]
+    zenith, horizon, ground = np.array([0.35, 0.45, 0.7]), np.array([0.8, 0.8, 0.75]), np.array([0.25, 0.2, 0.15])
+    sky = np.where(elevation > 0, horizon + (zenith - horizon) * elevation, horizon + (ground - horizon) * -elevation)
+    azimuth = np.linspace(0.0, 2.0 * np.pi, width)[None, :, None]
+    return sky * (1.0 + 0.3 * np.sin(3.0 * azimuth))
+
+
+def floor_light(index: int) -> tuple:
+    """Scene `index`'s sun travel direction, sun irradiance and floor albedo (seeded per scene)."""
+    rng = np.random.default_rng([FLOOR_SEED, index])
+    travel = (float(rng.uniform(-1, 1)), float(-rng.uniform(0.3, 1.0)), float(rng.uniform(-1, 1)))
+    return travel, float(rng.uniform(1.0, 3.0)), float(rng.uniform(0.2, 0.7))
+
+
+def floor_render(setup, index: int) -> np.ndarray:
+    """Mitsuba render of `setup` on a grey floor under `sky_map` and scene `index`'s sun (uint8 sRGB),
+    from the cache when there."""
+    travel, sun, albedo = floor_light(index)
+    return _mitsuba(setup, f"floor{albedo}-sky-map-{travel}-{sun}", "floor", travel, sun, 0.0,
+                    sky_map=sky_map(), floor_albedo=albedo)
 
 
 def score(light: str, grey: bool = False) -> dict:
-    """Reconstruct every scene under `light` (its cubes `greyed` when `grey`); per-cube errors and σ
-    ratios."""
+    """Reconstruct every scene under `light` (its cubes `greyed` when `grey`; light "floor": the
+    `floor_render` scenes); per-cube errors and σ ratios."""
     from bench.scenes import make_scenes
     from depth.reconstruct import reconstruct
     from raytrace.truth import cube_truth
     centre, size, zs, found, total, fp, domains = [], [], [], 0, 0, 0, []
-    for sc in make_scenes(N, SEED):
+    scenes = make_scenes(FLOOR_N, FLOOR_SEED) if light == "floor" else make_scenes(N, SEED)
+    for index, sc in enumerate(scenes):
         setup = greyed(sc.setup) if grey else sc.setup
         cam, mir = setup.camera.build(), setup.mirror.build()
-        rec = reconstruct(render(setup, light), cam, mir)
+        img = floor_render(setup, index) if light == "floor" else render(setup, light)
+        rec = reconstruct(img, cam, mir)
         domains.append(rec.blur_domain)
         truth = [cube_truth(cam, mir, c.build()) for c in sc.setup.objects]
         px_true = np.array([np.mean(t["front_face_corners_px"], axis=0) for t in truth])
@@ -103,10 +141,11 @@ def main() -> int:
           "centre error = |c_hat - c| / distance(c, axis)")
     print(f"{'light':14s} {'found':>7s} {'FP':>3s} | {'centre med':>10s} {'p90':>6s} {'max':>6s} | "
           f"{'size med':>8s} | within 1 / 2 sigma | blur domain chosen: encoded / linear")
-    for light, grey in [(light, False) for light in LIGHTS] + [("sun-front", True)]:
+    for light, grey in [(light, False) for light in LIGHTS] + [("sun-front", True), ("floor", False)]:
         r = score(light, grey)
         c, sz, z = r["centre"] * 100, r["size"] * 100, r["z"]
-        print(f"{light + (' grey' if grey else ''):14s} {r['found']:3d}/{r['total']:<3d} {r['fp']:3d} | {np.median(c):9.2f}% "
+        label = "floor any-sun" if light == "floor" else light + (" grey" if grey else "")
+        print(f"{label:14s} {r['found']:3d}/{r['total']:<3d} {r['fp']:3d} | {np.median(c):9.2f}% "
               f"{np.percentile(c, 90):5.1f}% {c.max():5.1f}% | {np.median(sz):7.2f}% | "
               f"{np.mean(z <= 1) * 100:3.0f} / {np.mean(z <= 2) * 100:3.0f} % | {r['encoded']} / {r['linear']}",
               flush=True)

@@ -30,9 +30,14 @@ def mitsuba_available() -> bool:
 
 
 def scene_dict(camera, mirror, cubes, spp: int, sun_travel, sun_irradiance: float, sky_radiance: float,
-               rfilter: str | None = None, max_depth: int = 5) -> dict:
+               rfilter: str | None = None, max_depth: int = 5, sky_map: np.ndarray | None = None,
+               floor_albedo: float | None = None) -> dict:
     """A Mitsuba 3 scene dict of our camera (PinholeCamera), CylinderMirror and Cubes, with a
-    directional sun and a constant sky."""
+    directional sun and a constant sky.
+
+    `sky_map` ((H, W, 3) linear radiance, equirectangular, Mitsuba's +y up) replaces the constant sky
+    (`sky_radiance` is then unused); `floor_albedo` adds a diffuse grey floor 10 m across, square to
+    the mirror's axis at its lower end (the mirror stands on it; cubes cast shadows on it)."""
     import mitsuba as mi
     w, h = camera.resolution
     cx, cy = camera.K[0, 2], camera.K[1, 2]
@@ -61,6 +66,18 @@ def scene_dict(camera, mirror, cubes, spp: int, sun_travel, sun_irradiance: floa
                 "irradiance": {"type": "rgb", "value": sun_irradiance}},
         "sky": {"type": "constant", "radiance": {"type": "rgb", "value": sky_radiance}},
     }
+    if sky_map is not None:
+        d["sky"] = {"type": "envmap", "bitmap": mi.Bitmap(np.ascontiguousarray(sky_map, dtype=np.float32))}
+    if floor_albedo is not None:
+        # Mitsuba's rectangle spans [-1, 1]² of its local xy plane, normal +z: map z to the axis
+        e1 = np.cross(mirror.axis, [1.0, 0.0, 0.0] if abs(mirror.axis[0]) < 0.9 else [0.0, 0.0, 1.0])
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(mirror.axis, e1)
+        m4 = np.eye(4)
+        m4[:3, :3] = np.stack([5.0 * e1, 5.0 * e2, mirror.axis], axis=1)
+        m4[:3, 3] = mirror.center - half
+        d["floor"] = {"type": "rectangle", "to_world": mi.ScalarTransform4f(m4.tolist()),
+                      "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [float(floor_albedo)] * 3}}}
     for k, c in enumerate(cubes):
         m4 = np.eye(4)
         m4[:3, :3] = c.rotation * (c.size / 2)
