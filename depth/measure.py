@@ -73,6 +73,10 @@ class CubeDetection:
         The blob touches another coloured blob.
     reason : str or None
         Why this cube should not be measured, or None when it may be.
+    achromatic : bool
+        Found without colour, as a region of another brightness than a uniform background
+        (`_achromatic_regions`): a grey, white or black cube, or a shadow, which looks the same
+        (`depth.reconstruct` tells them apart by the outline's fit).
     """
 
     mask: np.ndarray
@@ -83,6 +87,7 @@ class CubeDetection:
     cut_by_mirror_edge: bool = False
     occluded: bool = False
     reason: str | None = None
+    achromatic: bool = False
 
     @property
     def usable(self) -> bool:
@@ -408,7 +413,7 @@ def detect_cubes(
     n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(
         candidates.astype(np.uint8), connectivity=8
     )
-    blob_masks: list[tuple[np.ndarray, tuple[int, int]]] = []  # (local mask, (row, col) offset)
+    blob_masks: list[tuple[np.ndarray, tuple[int, int], bool]] = []  # (local mask, (row, col) offset, achromatic)
     fragments = np.zeros(rgb.shape[:2], dtype=np.int32)  # id of the coloured piece, 0 = none
     next_id = 1
     for lab in range(1, n_lab):
@@ -434,17 +439,17 @@ def detect_cubes(
             fragments[sl][piece] = next_id
             next_id += 1
             if piece.sum() >= min_area:
-                blob_masks.append((piece, (y, x)))
+                blob_masks.append((piece, (y, x), False))
 
     # Grey, white or black objects (found only on a uniform background): one blob each.
     for piece, (y, x) in grey:
         fragments[y : y + piece.shape[0], x : x + piece.shape[1]][piece] = next_id
         next_id += 1
         if piece.sum() >= min_area:
-            blob_masks.append((piece, (y, x)))
+            blob_masks.append((piece, (y, x), True))
 
     detections = []
-    for local, (y, x) in blob_masks:
+    for local, (y, x), achromatic in blob_masks:
         h, w = local.shape
         sl = (slice(y, y + h), slice(x, x + w))
         own_id = fragments[sl][local][0]
@@ -493,6 +498,7 @@ def detect_cubes(
                 cut_by_mirror_edge=cut,
                 occluded=occluded,
                 reason="; ".join(reasons) if reasons else None,
+                achromatic=achromatic,
             )
         )
     detections.sort(key=lambda d: (d.bbox[0] + d.bbox[2], d.bbox[1] + d.bbox[3]))

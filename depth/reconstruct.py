@@ -15,9 +15,9 @@ import cv2
 import numpy as np
 
 from depth.errors import DepthError
-from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED, METHODS, NO_SIDE_FACE_GAP_PX,
-                            NO_SIDE_FACE_GAP_PX_SHARP, CubeEstimate,
-                            FaceMeasurement, estimate_face, estimate_faces_shape_prior)
+from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED, EDGE_MISFIT_WARN_PX, METHODS,
+                            NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, CubeEstimate, FaceMeasurement,
+                            edge_misfit_flagged, estimate_face, estimate_faces_shape_prior)
 
 __all__ = ["ALL_METHODS", "CubeResult", "Refusal", "Reconstruction", "reconstruct", "check_image"]
 
@@ -133,6 +133,23 @@ def _measurement(img, blob_mask, outline, face_px, channels, compressed):
                            else NO_SIDE_FACE_GAP_PX_SHARP, blob_mask=blob_mask)
 
 
+def _shadow_reason(rays, meas, est, cube_size, up) -> str | None:
+    """Why a face found without colour is not taken for a cube, or None.
+
+    A grey, white or black cube and a shadow on a grey floor look alike: both are a region of
+    another brightness than the background around it. A cube's shadow, though, is a hexagon, not the
+    image of a square face: where `exact`'s edge misfit is flagged (`EDGE_MISFIT_WARN_PX`; the other
+    methods are checked with `exact`), the region is refused. (On the lighting bench, the 16 grey cubes
+    found fit to 0.03–0.27 px and 5 cube shadows on a floor to 0.54–0.80 px.)"""
+    check = est if est.method == "exact" else estimate_face(rays, meas, method="exact", cube_size=cube_size, up=up)
+    if not check:
+        return f"no colour and no square face: {check.reason} (a shadow?)"
+    if edge_misfit_flagged(check.rms_residual):
+        return (f"no colour, and its outline is no square face's (edge misfit {check.rms_residual:.2f} px > "
+                f"{EDGE_MISFIT_WARN_PX} px): a shadow?")
+    return None
+
+
 def _side_to_grow(failed) -> int | None:
     """The side of a failed outline across which its face mask is grown to the blob: one with no contrast
     at all, else a left or right one with too few edge points of contrast or too few consistent ones
@@ -185,6 +202,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     detections = detect_cubes(despeckled(img) if compressed else img, mask)
     thin_strips = not compressed  # JPEG ringing beside an edge mimics a thin strip
     cubes, refused, measured, blurred = [], [], [], []
+    achromatic = set()  # indices into measured of the faces found without colour
     alternatives = {}  # index into measured: (blob mask, face pixels, channels) of a face with two readings
     domain, any_blurred = blur_domain, False
     total = max(len(detections), 1)
@@ -221,6 +239,8 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         face_px = np.column_stack([xs, ys]).astype(np.float64)
         if outline.alternative is not None:  # a one-pixel strip's other reading, for a refused cube
             alternatives[len(measured)] = (det.mask, face_px, channels)
+        if det.achromatic:
+            achromatic.add(len(measured))
         measured.append((_measurement(img, det.mask, outline, face_px, channels, compressed), bbox, outline))
         if progress is not None:
             progress(i + 1, total)
@@ -235,10 +255,10 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
                 if not outline:  # cannot happen after a linear outline succeeded; keep that one
                     continue
                 measured[k] = (_measurement(img, det.mask, outline, meas.face_px, channels, compressed), bbox, outline)
+    up = getattr(mirror, "axis", None)
     if method == "shape_prior":
         estimates = estimate_faces_shape_prior(rays, [m for m, _, _ in measured])
     else:
-        up = getattr(mirror, "axis", None)
         estimates = [estimate_face(rays, m, method=method, cube_size=cube_size, up=up) for m, _, _ in measured]
         for k, (blob, face_px, channels) in alternatives.items():
             # one off-colour pixel beside a side along the pixel grid is read as a strip (a side face)
@@ -253,9 +273,12 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             if alt:
                 estimates[k] = alt
                 measured[k] = (alt_meas, measured[k][1], alt_outline)
-    for est, (meas, bbox, outline) in zip(estimates, measured):
+    for k, (est, (meas, bbox, outline)) in enumerate(zip(estimates, measured)):
         if not est:
             refused.append(Refusal(bbox, f"{est.method}: {est.reason}"))
+            continue
+        if k in achromatic and (shadow := _shadow_reason(rays, meas, est, cube_size, up)):
+            refused.append(Refusal(bbox, shadow))
             continue
         depth = float(mirror.distance_to_axis(est.center[None])[0])
         cubes.append(CubeResult(estimate=est, depth=depth, depth_std=float(est.std.get("z", np.nan)),

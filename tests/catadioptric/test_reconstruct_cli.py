@@ -226,3 +226,54 @@ def test_the_overlay_draws_a_flagged_face_in_orange(scene):
                                                                          rms_residual=2.0 * EDGE_MISFIT_WARN_PX))
     marked = draw_overlay(image, dataclasses.replace(rec, cubes=[bad, rec.cubes[1]]))
     assert count(marked, OVERLAY_FLAGGED) > 20 and count(marked, OVERLAY_FACE) > 20
+
+
+def test_a_shadow_on_a_grey_background_is_not_taken_for_a_grey_cube(tmp_path):
+    """A cube's shadow on a floor, seen in the mirror, is a darker region of the background's own
+    colour, as a grey cube's face is; but it is a hexagon, not the image of a square face. Painted
+    into a render of two grey cubes (a hexagon 24 px wide and 62 px tall, the background × 0.6,
+    anti-aliased by 8 × 8 supersampling), it is refused as a shadow while both cubes are still found
+    (before, it came out as a third cube 1 cm across, as 5 cube shadows did on the lighting bench)."""
+    import tomli_w
+
+    from catadioptric.setup import load_setup
+    from depth.reconstruct import reconstruct
+    setup = {
+        "scene": {"background": [0.3, 0.3, 0.3]},
+        "camera": {"resolution": [640, 480], "focal_px": [1400.0, 1400.0], "position": [0.0, 0.0, 0.55],
+                   "look_at": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0]},
+        "mirror": {"type": "cylinder", "radius": 0.1, "height": 0.49, "center": [0.0, 0.0, 0.0],
+                   "axis": [0.0, 1.0, 0.0]},
+        "objects": [],
+    }
+    for r, az in ((0.35, -30.0), (0.5, 20.0)):
+        a = np.deg2rad(az)
+        x, z = r * np.sin(a), r * np.cos(a)
+        setup["objects"].append({"type": "cube", "size": 0.04, "center": [x, 0.0, z],
+                                 "rotation_deg": [0.0, float(np.rad2deg(np.arctan2(-x, -z))), 0.0]})
+    path = tmp_path / "grey.toml"
+    path.write_text(tomli_w.dumps(setup))
+    assert main(["simulate", str(path), "-o", str(tmp_path / "grey.png")]) == 0
+    img = cv2.cvtColor(cv2.imread(str(tmp_path / "grey.png")), cv2.COLOR_BGR2RGB).astype(np.float64) / 255.0
+    loaded = load_setup(path)
+    camera, mirror = loaded.camera.build(), loaded.mirror.build()
+    found = reconstruct(img, camera, mirror).cubes
+    assert len(found) == 2
+    # a hexagon (a cube's shadow cast by a sun from the side) where the mirror shows only background
+    centre = np.array([320.0, 380.0])
+    hexagon = centre + np.array([[-10, -25], [4, -31], [12, -20], [10, 25], [-4, 31], [-12, 20]], dtype=np.float64)
+    assert all(np.linalg.norm(np.mean(c.corners_px, axis=0) - centre) > 60 for c in found)
+    s = 8
+    big = np.zeros((480 * s, 640 * s), np.uint8)
+    cv2.fillPoly(big, [np.round((hexagon + 0.5) * s - 0.5).astype(np.int32)], 1)
+    cover = big.reshape(480, s, 640, s).mean(axis=(1, 3))
+    assert img[cover > 0].std() < 0.01  # painted over uniform background only
+    shaded = img * (1.0 - 0.4 * cover[..., None])
+    shaded = np.round(shaded * 255.0) / 255.0
+    rec = reconstruct(shaded, camera, mirror)
+    assert len(rec.cubes) == 2
+    for cube in rec.cubes:
+        assert min(np.linalg.norm(np.mean(cube.corners_px, axis=0) - np.mean(c.corners_px, axis=0))
+                   for c in found) < 1.0
+    shadow = [r for r in rec.refused if r.bbox[0] <= centre[0] <= r.bbox[2] and r.bbox[1] <= centre[1] <= r.bbox[3]]
+    assert len(shadow) == 1 and "shadow" in shadow[0].reason

@@ -235,6 +235,8 @@ def test_grey_white_and_black_cubes_are_found_on_a_uniform_background(albedos):
         face = pixel_truth(image.shape[:2], c, "face")
         iou = (d.front_face_mask & face).sum() / (d.front_face_mask | face).sum()
         assert iou > 0.9
+        if np.ptp(c.albedo) == 0.0 or c.albedo == COLOURS["green"]:  # found without colour, or by it
+            assert d.achromatic == (np.ptp(c.albedo) == 0.0)
 
 
 def test_grey_cubes_are_not_looked_for_on_a_checkered_background():
