@@ -619,10 +619,21 @@ def _lean(blob: np.ndarray) -> float:
     return float(np.clip(a, -0.3, 0.3))
 
 
+_EDGE_LINE_QUANTILE = 0.7
+"""`_vertical_edge_lines`: a sheared column is an edge line where 30 % of its pixels' gradients stand out."""
+
+
 def _vertical_edge_lines(linear: np.ndarray, blob: np.ndarray, lean: float, min_contrast: float):
     """Internal near-vertical edge lines of a blob, from the horizontal gradient projected
-    along the blob's lean: sheared columns x = u − lean·(v − v̄) whose mean gradient stands
-    out of the face noise. Returns the x positions (local, sub-pixel) and the shear origin v̄."""
+    along the blob's lean: sheared columns x = u − lean·(v − v̄) whose gradient stands out of the
+    face noise along much of their length. Returns the x positions (local, sub-pixel) and the shear
+    origin v̄.
+
+    A column's statistic is the `_EDGE_LINE_QUANTILE` quantile of its pixels' gradients, not their
+    mean: a boundary between a front and a side face runs the face's height, while a strong edge
+    crossing a column over a few rows (the slanted edge of a tall top face) put the mean above the
+    threshold, and the front face was cut there (lighting bench, floor s4/2: 6 px of a 36 px face
+    cut off, 11.7 % off)."""
     h, w = blob.shape
     if w < 7:
         return np.zeros(0), 0.0
@@ -638,10 +649,13 @@ def _vertical_edge_lines(linear: np.ndarray, blob: np.ndarray, lean: float, min_
     x = uu - lean * (vv - vbar)
     x0 = np.floor(x.min())
     bins = np.rint(x - x0).astype(int)
-    total = np.bincount(bins, weights=grad[vv, uu])
     count = np.bincount(bins)
     ok = count >= max(5, 0.5 * count.max())
-    mean = np.where(ok, total / np.maximum(count, 1), np.nan)
+    g = grad[vv, uu]
+    order = np.lexsort((g, bins))  # by bin, then by gradient
+    start = np.r_[0, np.cumsum(count)[:-1]]
+    pick = start + np.floor(_EDGE_LINE_QUANTILE * np.maximum(count - 1, 0)).astype(int)
+    mean = np.where(ok, g[order][np.minimum(pick, len(g) - 1)], np.nan)
     idx = np.flatnonzero(ok)
     if len(idx) < 5:
         return np.zeros(0), vbar

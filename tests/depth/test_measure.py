@@ -264,6 +264,35 @@ def test_front_face_is_separated_from_side_and_top_strips():
         assert any((m & strip).sum() > 0.5 * strip.sum() for m in d.side_face_masks)
 
 
+@dataclasses.dataclass
+class TopShadowedCube(FakeCube):
+    """A cube whose top face lies, right of `shadow_u`, in a cast shadow (a vertical step within it)."""
+
+    shadow_u: float = 0.0
+
+    def paint(self, img, u, v):
+        super().paint(img, u, v)
+        tv = self.top(u)
+        m = (u > self.shadow_u) & (u < self.right(v)) & (v > tv - self.top_height) & (v <= tv)
+        img[m] = np.asarray(self.albedo) * self.front_shade * 0.8
+
+
+@pytest.mark.parametrize("top_height", [20.0, 28.0])
+def test_a_shadow_edge_across_the_top_face_does_not_cut_the_front_face(top_height):
+    """A shadow cast across a tall top face makes a vertical brightness step over the top face's
+    rows only. It is no boundary between the front face and a side face (those run the face's whole
+    height), so the front face is not cut there (it was: 6 of its 36 columns lost, as in the lighting
+    bench's floor s4/2, which came out 11.7 % off)."""
+    cube = TopShadowedCube((60.3, 50.2), (96.6, 50.9), (97.0, 210.0), (60.8, 209.5), side=None,
+                           albedo=COLOURS["green"], top_height=top_height, top_shade=0.85, shadow_u=66.7)
+    image, mirror = make_image((240, 200), [cube], background="grey", noise=2 / 255)
+    (d,) = detect_cubes(image, mirror)
+    assert d.usable, d.reason
+    face = pixel_truth(image.shape[:2], cube, "face")
+    assert (d.front_face_mask & face).sum() / (d.front_face_mask | face).sum() > 0.95
+    assert abs(np.flatnonzero(d.front_face_mask.any(axis=0))[0] - cube.tl[0]) < 1.0
+
+
 def test_blob_touching_the_mirror_edge_is_refused():
     inside = FakeCube((60.3, 70.2), (80.6, 70.9), (81.0, 175.0), (60.8, 174.5), side="right",
                       albedo=COLOURS["yellow"])
