@@ -15,9 +15,9 @@ import cv2
 import numpy as np
 
 from depth.errors import DepthError
-from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED, EDGE_MISFIT_WARN_PX, METHODS,
+from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED, METHODS,
                             NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, CubeEstimate, FaceMeasurement,
-                            edge_misfit_flagged, estimate_face, estimate_faces_shape_prior)
+                            estimate_face, estimate_faces_shape_prior)
 
 __all__ = ["ALL_METHODS", "CubeResult", "Refusal", "Reconstruction", "reconstruct", "check_image"]
 
@@ -133,20 +133,26 @@ def _measurement(img, blob_mask, outline, face_px, channels, compressed):
                            else NO_SIDE_FACE_GAP_PX_SHARP, blob_mask=blob_mask)
 
 
+SHADOW_MISFIT_PX = 0.45
+"""`exact`'s edge misfit (rms px) above which a face found without colour is taken for a shadow: the
+outlines of cube shadows on a floor fit a square face to 0.54–0.80 px (lighting bench, floor case),
+those of grey, white and black cubes to 0.03–0.32 px (its grey case)."""
+
+
 def _shadow_reason(rays, meas, est, cube_size, up) -> str | None:
     """Why a face found without colour is not taken for a cube, or None.
 
     A grey, white or black cube and a shadow on a grey floor look alike: both are a region of
     another brightness than the background around it. A cube's shadow, though, is a hexagon, not the
-    image of a square face: where `exact`'s edge misfit is flagged (`EDGE_MISFIT_WARN_PX`; the other
-    methods are checked with `exact`), the region is refused. (On the lighting bench, the 16 grey cubes
-    found fit to 0.03–0.27 px and 5 cube shadows on a floor to 0.54–0.80 px.)"""
+    image of a square face: where `exact`'s edge misfit exceeds `SHADOW_MISFIT_PX` (the other methods
+    are checked with `exact`), the region is refused. A shadow that happens to be a quadrilateral (a
+    sun along a face) is not told from a grey cube."""
     check = est if est.method == "exact" else estimate_face(rays, meas, method="exact", cube_size=cube_size, up=up)
     if not check:
         return f"no colour and no square face: {check.reason} (a shadow?)"
-    if edge_misfit_flagged(check.rms_residual):
+    if check.rms_residual > SHADOW_MISFIT_PX:
         return (f"no colour, and its outline is no square face's (edge misfit {check.rms_residual:.2f} px > "
-                f"{EDGE_MISFIT_WARN_PX} px): a shadow?")
+                f"{SHADOW_MISFIT_PX} px): a shadow?")
     return None
 
 
