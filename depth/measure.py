@@ -515,7 +515,8 @@ def _split_faces(linear: np.ndarray, value: np.ndarray, chroma: np.ndarray, blob
     along the blob's lean) or, when the faces are equally bright, as kinks where the top and
     bottom outlines turn. Then brightness: within the widest part, the largest region of
     uniform brightness (see `_split_by_brightness`) removes top/bottom strips. A blob with
-    two face-sized parts is two touching cubes of the same colour and is refused.
+    two face-sized parts is two touching cubes of the same colour, or one cube with a cast shadow's edge
+    running down its front face (which no outline of one face can follow), and is refused.
     linear : (h, w, 3) linear RGB; value, chroma : (h, w); blob : (h, w) bool.
     """
     reason = None
@@ -531,7 +532,8 @@ def _split_faces(linear: np.ndarray, value: np.ndarray, chroma: np.ndarray, blob
             order = np.argsort(-widths)
             k = int(order[0])
             if len(widths) > 1 and widths[order[1]] >= 0.7 * widths[k] and widths[order[1]] >= 6:
-                reason = "touching cubes of the same colour (two face-sized parts in one blob)"
+                reason = ("two face-sized parts in one blob: touching cubes of the same colour, or a shadow "
+                          "edge across a face")
             region = blob & (x > edges[k]) & (x < edges[k + 1])
     reason = reason or _neck_reason(blob)
     front, _ = _split_by_brightness(value, chroma, region, min_contrast)

@@ -293,6 +293,23 @@ def test_a_shadow_edge_across_the_top_face_does_not_cut_the_front_face(top_heigh
     assert abs(np.flatnonzero(d.front_face_mask.any(axis=0))[0] - cube.tl[0]) < 1.0
 
 
+def test_a_shadow_edge_down_the_front_face_is_refused_and_said_so():
+    """A cast shadow whose edge runs down the front face splits it into two face-sized parts of one
+    colour, as two touching cubes would be: refused, and the reason names both readings (a Mitsuba
+    render with a sun behind the mirror showed this; the reason spoke of touching cubes only)."""
+    @dataclasses.dataclass
+    class Shadowed(FakeCube):
+        def paint(self, img, u, v):
+            super().paint(img, u, v)
+            img[self.face(u, v) & (u > 82.0)] = np.asarray(self.albedo) * self.front_shade * 0.6
+
+    cube = Shadowed((60.3, 50.2), (96.6, 50.9), (97.0, 210.0), (60.8, 209.5), side="right",
+                    albedo=COLOURS["green"])
+    image, mirror = make_image((240, 200), [cube], background="grey", noise=2 / 255)
+    (d,) = detect_cubes(image, mirror)
+    assert not d.usable and "shadow" in d.reason and "touching cubes" in d.reason
+
+
 def test_blob_touching_the_mirror_edge_is_refused():
     inside = FakeCube((60.3, 70.2), (80.6, 70.9), (81.0, 175.0), (60.8, 174.5), side="right",
                       albedo=COLOURS["yellow"])
