@@ -632,8 +632,8 @@ def _vertical_edge_lines(linear: np.ndarray, blob: np.ndarray, lean: float, min_
     origin v̄.
 
     A column's statistic is the `_EDGE_LINE_QUANTILE` quantile of its pixels' gradients, not their
-    mean: a boundary between a front and a side face runs the face's height, while a strong edge
-    crossing a column over a few rows (the slanted edge of a tall top face) put the mean above the
+    mean: a boundary between a front and a side face runs the face's height, while an edge down a
+    column over a few rows only (a cast shadow's edge across a tall top face) put the mean above the
     threshold, and the front face was cut there (lighting bench, floor s4/2: 6 px of a 36 px face
     cut off, 11.7 % off)."""
     h, w = blob.shape
@@ -657,15 +657,15 @@ def _vertical_edge_lines(linear: np.ndarray, blob: np.ndarray, lean: float, min_
     order = np.lexsort((g, bins))  # by bin, then by gradient
     start = np.r_[0, np.cumsum(count)[:-1]]
     pick = start + np.floor(_EDGE_LINE_QUANTILE * np.maximum(count - 1, 0)).astype(int)
-    mean = np.where(ok, g[order][np.minimum(pick, len(g) - 1)], np.nan)
+    stat = np.where(ok, g[order][np.minimum(pick, len(g) - 1)], np.nan)
     idx = np.flatnonzero(ok)
     if len(idx) < 5:
         return np.zeros(0), vbar
-    level = float(np.nanmedian(mean))
-    noise = 1.4826 * float(np.nanmedian(np.abs(mean - level)))
+    level = float(np.nanmedian(stat))
+    noise = 1.4826 * float(np.nanmedian(np.abs(stat - level)))
     # a face boundary of contrast c puts ≈ c/2 in each of the two columns beside it
     thr = level + max(6.0 * noise, 0.25 * min_contrast)
-    m = np.where(ok, mean, -np.inf)
+    m = np.where(ok, stat, -np.inf)
     peaks = []
     for i in idx[1:-1]:
         if m[i] > thr and m[i] >= m[i - 1] and m[i] > m[i + 1]:
