@@ -165,11 +165,9 @@ def test_jpeg_files_are_recognised_by_their_bytes(scene, tmp_path):
     assert not is_jpeg(tmp_path / "a.png") and is_jpeg(tmp_path / "b.png")
 
 
-def test_cubes_of_the_default_grey_are_reconstructed(tmp_path, capsys):
-    """A setup whose cubes give no `color` renders them in the default grey; on a darker grey background
-    `reconstruct` finds them by their difference from it (it found none before), each within 5 % of the
-    truth and with its depth within 3 reported σ. (On the default background, as bright as a grey
-    front face under the default light, that face can vanish: nothing tells it from the background.)"""
+def _grey_cubes(folder):
+    """`grey.toml` in `folder`, rendered by `simulate` to `grey.png`: two 4 cm cubes of the default grey,
+    facing the mirror axis 0.35 m and 0.5 m from it, on a darker grey background. Returns the setup's path."""
     import tomli_w
     setup = {
         "scene": {"background": [0.3, 0.3, 0.3]},
@@ -184,9 +182,18 @@ def test_cubes_of_the_default_grey_are_reconstructed(tmp_path, capsys):
         x, z = r * np.sin(a), r * np.cos(a)
         setup["objects"].append({"type": "cube", "size": 0.04, "center": [x, 0.0, z],
                                  "rotation_deg": [0.0, float(np.rad2deg(np.arctan2(-x, -z))), 0.0]})
-    path = tmp_path / "grey.toml"
+    path = folder / "grey.toml"
     path.write_text(tomli_w.dumps(setup))
-    assert main(["simulate", str(path), "-o", str(tmp_path / "grey.png")]) == 0
+    assert main(["simulate", str(path), "-o", str(folder / "grey.png")]) == 0
+    return path
+
+
+def test_cubes_of_the_default_grey_are_reconstructed(tmp_path, capsys):
+    """A setup whose cubes give no `color` renders them in the default grey; on a darker grey background
+    `reconstruct` finds them by their difference from it (it found none before), each within 5 % of the
+    truth and with its depth within 3 reported σ. (On the default background, as bright as a grey
+    front face under the default light, that face can vanish: nothing tells it from the background.)"""
+    _grey_cubes(tmp_path)
     out = tmp_path / "r.json"
     assert main(["reconstruct", str(tmp_path / "grey.png"), "-o", str(out)]) == 0
     result = json.loads(out.read_text())
@@ -234,26 +241,9 @@ def test_a_shadow_on_a_grey_background_is_not_taken_for_a_grey_cube(tmp_path):
     into a render of two grey cubes (a hexagon 24 px wide and 62 px tall, the background × 0.6,
     anti-aliased by 8 × 8 supersampling), it is refused as a shadow while both cubes are still found
     (before, it came out as a third cube 1 cm across, as 5 cube shadows did on the lighting bench)."""
-    import tomli_w
-
     from catadioptric.setup import load_setup
     from depth.reconstruct import reconstruct
-    setup = {
-        "scene": {"background": [0.3, 0.3, 0.3]},
-        "camera": {"resolution": [640, 480], "focal_px": [1400.0, 1400.0], "position": [0.0, 0.0, 0.55],
-                   "look_at": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0]},
-        "mirror": {"type": "cylinder", "radius": 0.1, "height": 0.49, "center": [0.0, 0.0, 0.0],
-                   "axis": [0.0, 1.0, 0.0]},
-        "objects": [],
-    }
-    for r, az in ((0.35, -30.0), (0.5, 20.0)):
-        a = np.deg2rad(az)
-        x, z = r * np.sin(a), r * np.cos(a)
-        setup["objects"].append({"type": "cube", "size": 0.04, "center": [x, 0.0, z],
-                                 "rotation_deg": [0.0, float(np.rad2deg(np.arctan2(-x, -z))), 0.0]})
-    path = tmp_path / "grey.toml"
-    path.write_text(tomli_w.dumps(setup))
-    assert main(["simulate", str(path), "-o", str(tmp_path / "grey.png")]) == 0
+    path = _grey_cubes(tmp_path)
     img = cv2.cvtColor(cv2.imread(str(tmp_path / "grey.png")), cv2.COLOR_BGR2RGB).astype(np.float64) / 255.0
     loaded = load_setup(path)
     camera, mirror = loaded.camera.build(), loaded.mirror.build()
