@@ -926,7 +926,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         return FailedEstimate("exact", "least squares did not converge from any starting turn")
     x_best, cov = result
     rot, c, s = unpack(x_best)
-    if not (np.all(np.isfinite(x_best)) and np.all(np.isfinite(c))):
+    if not (np.all(np.isfinite(x_best)) and np.all(np.isfinite(c)) and np.isfinite(s) and s > 0):
         return FailedEstimate("exact", "least squares diverged")
     normal = _square_axes(rot, base)[2]
     r = resid(x_best)[:len(sid)]  # the edge points' misfit

@@ -602,3 +602,24 @@ def test_face_frame_helpers_batched_match_plane_intersections(seed, k):
         a1, b1 = _face_coords(origins, directions, c[j], axes[j])
         tol = 16 * eps * kappa * (np.abs(np.stack([a[j], b[j]])) + 1.0)
         assert np.all(np.abs(np.stack([a1, b1]) - np.stack([a[j], b[j]])) <= tol)
+
+
+def test_a_fit_whose_size_runs_off_to_infinity_is_refused(rig, monkeypatch):
+    """A least-squares run can leave the log size so large that the size overflows to infinity while
+    every fitted number stays finite (a cube's shadow on a floor did, on the lighting bench's second
+    set of suns). That is a divergence: refused, never reported as a cube of infinite size (it was, with
+    a misfit of 0)."""
+    import depth.estimate as E
+    cube = rig.cube(0.5, 8.0)
+    meas = rig.measure(cube)
+    assert estimate_face(rig.rays, meas, method="exact", up=rig.mirror.axis)  # a sound fit, untouched
+    real = E.least_squares
+
+    def runaway(*args, **kwargs):  # the solver's answer, its log size (the last parameter) sent to 800
+        sol = real(*args, **kwargs)
+        sol.x = np.r_[sol.x[:-1], 800.0]
+        return sol
+    monkeypatch.setattr(E, "least_squares", runaway)
+    with np.errstate(all="ignore"):
+        est = estimate_face(rig.rays, meas, method="exact", up=rig.mirror.axis)
+    assert not est and "diverged" in est.reason
