@@ -81,33 +81,40 @@ def sky_map(height: int = 64, width: int = 128) -> np.ndarray:
     return sky * (1.0 + 0.3 * np.sin(3.0 * azimuth))
 
 
-def floor_light(index: int) -> tuple:
-    """Scene `index`'s sun travel direction, sun irradiance and floor albedo (seeded per scene)."""
-    rng = np.random.default_rng([FLOOR_SEED, index])
+def floor_light(index: int, draw: int = 0) -> tuple:
+    """Scene `index`'s sun travel direction, sun irradiance and floor albedo. Draw 0: seeded per scene;
+    draw 1: the second set of suns, drawn in turn for the scenes from one generator (the first holdout
+    run of the fifteenth session)."""
+    if draw == 0:
+        rng = np.random.default_rng([FLOOR_SEED, index])
+    else:
+        rng = np.random.default_rng(FLOOR_SEED + 1)
+        rng.uniform(size=5 * index)  # the draws of the scenes before
     travel = (float(rng.uniform(-1, 1)), float(-rng.uniform(0.3, 1.0)), float(rng.uniform(-1, 1)))
     return travel, float(rng.uniform(1.0, 3.0)), float(rng.uniform(0.2, 0.7))
 
 
-def floor_render(setup, index: int) -> np.ndarray:
-    """Mitsuba render of `setup` on a grey floor under `sky_map` and scene `index`'s sun (uint8 sRGB),
-    from the cache when there."""
-    travel, sun, albedo = floor_light(index)
+def floor_render(setup, index: int, draw: int = 0) -> np.ndarray:
+    """Mitsuba render of `setup` on a grey floor under `sky_map` and scene `index`'s sun of `draw`
+    (uint8 sRGB), from the cache when there."""
+    travel, sun, albedo = floor_light(index, draw)
     return _mitsuba(setup, f"floor{albedo}-sky-map-{travel}-{sun}", "floor", travel, sun, 0.0,
                     sky_map=sky_map(), floor_albedo=albedo)
 
 
 def score(light: str, grey: bool = False) -> dict:
-    """Reconstruct every scene under `light` (its cubes `greyed` when `grey`; light "floor": the
-    `floor_render` scenes); per-cube errors and σ ratios."""
+    """Reconstruct every scene under `light` (its cubes `greyed` when `grey`; lights "floor" and
+    "floor2": the `floor_render` scenes under the suns of draw 0 and 1); per-cube errors and σ ratios."""
     from bench.scenes import make_scenes
     from depth.reconstruct import reconstruct
     from raytrace.truth import cube_truth
     centre, size, zs, found, total, fp, domains = [], [], [], 0, 0, 0, []
-    scenes = make_scenes(FLOOR_N, FLOOR_SEED) if light == "floor" else make_scenes(N, SEED)
+    floor = light.startswith("floor")
+    scenes = make_scenes(FLOOR_N, FLOOR_SEED) if floor else make_scenes(N, SEED)
     for index, sc in enumerate(scenes):
         setup = greyed(sc.setup) if grey else sc.setup
         cam, mir = setup.camera.build(), setup.mirror.build()
-        img = floor_render(setup, index) if light == "floor" else render(setup, light)
+        img = floor_render(setup, index, int(light == "floor2")) if floor else render(setup, light)
         rec = reconstruct(img, cam, mir)
         domains.append(rec.blur_domain)
         truth = [cube_truth(cam, mir, c.build()) for c in sc.setup.objects]
@@ -141,10 +148,10 @@ def main() -> int:
           "centre error = |c_hat - c| / distance(c, axis)")
     print(f"{'light':14s} {'found':>7s} {'FP':>3s} | {'centre med':>10s} {'p90':>6s} {'max':>6s} | "
           f"{'size med':>8s} | within 1 / 2 sigma | blur domain chosen: encoded / linear")
-    for light, grey in [(light, False) for light in LIGHTS] + [("sun-front", True), ("floor", False)]:
+    for light, grey in [(light, False) for light in LIGHTS] + [("sun-front", True), ("floor", False), ("floor2", False)]:
         r = score(light, grey)
         c, sz, z = r["centre"] * 100, r["size"] * 100, r["z"]
-        label = "floor any-sun" if light == "floor" else light + (" grey" if grey else "")
+        label = {"floor": "floor any-sun", "floor2": "floor, suns 2"}.get(light, light + (" grey" if grey else ""))
         print(f"{label:14s} {r['found']:3d}/{r['total']:<3d} {r['fp']:3d} | {np.median(c):9.2f}% "
               f"{np.percentile(c, 90):5.1f}% {c.max():5.1f}% | {np.median(sz):7.2f}% | "
               f"{np.mean(z <= 1) * 100:3.0f} / {np.mean(z <= 2) * 100:3.0f} % | {r['encoded']} / {r['linear']}",
