@@ -46,9 +46,11 @@ def greyed(setup):
     return dataclasses.replace(setup, objects=objects)
 
 
-def _mitsuba(setup, key: str, name: str, travel, sun: float, sky: float, **extra) -> np.ndarray:
+def mitsuba_cached(setup, key: str, name: str, travel, sun: float, sky: float, spp: int | None = None,
+                   seed: int = 0, **extra) -> np.ndarray:
     """Mitsuba render (uint8 sRGB) of `setup` with a sun and a sky (`mitsuba_scenes.scene_dict`, with
-    `extra`), cached in bench/out/renders/ under `setup`'s hash with `key` and the file suffix `name`."""
+    `extra`) at `spp` samples per pixel (default `mitsuba_scenes.SPP`) and sampler `seed`, cached in
+    bench/out/renders/ under `setup`'s hash with `key` and the file suffix `name`."""
     import mitsuba as mi
 
     from bench import mitsuba_scenes as ms
@@ -56,19 +58,21 @@ def _mitsuba(setup, key: str, name: str, travel, sun: float, sky: float, **extra
     from bench.scenes import scene_hash
     from raytrace.render import linear_to_srgb8
 
+    spp = ms.SPP if spp is None else spp
+
     def make():
         mi.set_variant("scalar_rgb")
         scene = setup.build_scene()
-        d = ms.scene_dict(setup.camera.build(), scene.mirror, scene.objects, ms.SPP, travel, sun, sky,
+        d = ms.scene_dict(setup.camera.build(), scene.mirror, scene.objects, spp, travel, sun, sky,
                           rfilter="gaussian", **extra)
-        return linear_to_srgb8(np.asarray(mi.render(mi.load_dict(d), seed=0), dtype=np.float64)[:, :, :3])
-    return _cached(OUT / "renders" / f"{scene_hash(setup, f'mitsuba-spp{ms.SPP}-{key}')}-mitsuba-{name}.png", make)
+        return linear_to_srgb8(np.asarray(mi.render(mi.load_dict(d), seed=seed), dtype=np.float64)[:, :, :3])
+    return _cached(OUT / "renders" / f"{scene_hash(setup, f'mitsuba-spp{spp}-{key}')}-mitsuba-{name}.png", make)
 
 
 def render(setup, light: str) -> np.ndarray:
     """Mitsuba render of `setup` under `light` (uint8 sRGB), from the cache when there."""
     travel, sun, sky = LIGHTS[light]
-    return _mitsuba(setup, f"{light}-{travel}-{sun}-{sky}", light, travel, sun, sky)
+    return mitsuba_cached(setup, f"{light}-{travel}-{sun}-{sky}", light, travel, sun, sky)
 
 
 def sky_map(height: int = 64, width: int = 128) -> np.ndarray:
@@ -98,8 +102,8 @@ def floor_render(setup, index: int, draw: int = 0) -> np.ndarray:
     """Mitsuba render of `setup` on a grey floor under `sky_map` and scene `index`'s sun of `draw`
     (uint8 sRGB), from the cache when there."""
     travel, sun, albedo = floor_light(index, draw)
-    return _mitsuba(setup, f"floor{albedo}-sky-map-{travel}-{sun}", "floor", travel, sun, 0.0,
-                    sky_map=sky_map(), floor_albedo=albedo)
+    return mitsuba_cached(setup, f"floor{albedo}-sky-map-{travel}-{sun}", "floor", travel, sun, 0.0,
+                          sky_map=sky_map(), floor_albedo=albedo)
 
 
 def score(light: str, grey: bool = False) -> dict:

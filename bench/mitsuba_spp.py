@@ -39,32 +39,23 @@ def errors(image, setup) -> list:
 
 def main(argv=None) -> int:
     from bench import mitsuba_scenes as ms
-    from bench.bench_reconstruct import OUT, _cached, mitsuba_image
-    from bench.scenes import make_scenes, scene_hash
-    from raytrace.render import linear_to_srgb8
+    from bench.bench_lighting import mitsuba_cached
+    from bench.bench_reconstruct import mitsuba_image
+    from bench.scenes import make_scenes
     argv = sys.argv[1:] if argv is None else argv
     spp = int(argv[0]) if argv else 256
     if not ms.mitsuba_available():
         print("bench.mitsuba_spp: Mitsuba 3 is not installed (pip install -e '.[bench]')")
         return 0
-    import mitsuba as mi
     print(f"exact on the reconstruct bench's Mitsuba scenes: centre error % (depth error / σ), 16 spp vs {spp} spp")
+    light = (ms.LIGHT_TRAVEL, ms.SUN_IRRADIANCE, ms.ENV_RADIANCE)
     for i, sc in enumerate(make_scenes(3, 105)):
-        setup = sc.setup
-
-        def make(setup=setup):
-            mi.set_variant("scalar_rgb")
-            scene = setup.build_scene()
-            d = ms.scene_dict(setup.camera.build(), scene.mirror, scene.objects, spp, ms.LIGHT_TRAVEL,
-                              ms.SUN_IRRADIANCE, ms.ENV_RADIANCE, rfilter="gaussian")
-            return linear_to_srgb8(np.asarray(mi.render(mi.load_dict(d), seed=1), dtype=np.float64)[:, :, :3])
-        key = scene_hash(setup, f"mitsuba-spp{spp}-seed1-{ms.LIGHT_TRAVEL}-{ms.ENV_RADIANCE}-{ms.SUN_IRRADIANCE}")
-        many = _cached(OUT / "renders" / f"{key}-mitsuba-spp{spp}.png", make)
-        for name, image in (("16", mitsuba_image(setup)), (str(spp), many)):
-            cells = ["—" if e is None else f"{e[0]:5.2f} ({e[1]:+.1f})" for e in errors(image, setup)]
+        many = mitsuba_cached(sc.setup, f"seed1-{ms.LIGHT_TRAVEL}-{ms.ENV_RADIANCE}-{ms.SUN_IRRADIANCE}",
+                              f"spp{spp}", *light, spp=spp, seed=1)
+        for name, image in (("16", mitsuba_image(sc.setup)), (str(spp), many)):
+            cells = ["—" if e is None else f"{e[0]:5.2f} ({e[1]:+.1f})" for e in errors(image, sc.setup)]
             print(f"  s{i:02d} {name:>5s} spp: " + "  ".join(cells), flush=True)
     return 0
-
 
 if __name__ == "__main__":
     sys.exit(main())
