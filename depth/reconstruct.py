@@ -156,6 +156,65 @@ def _shadow_reason(rays, meas, est, cube_size, up) -> str | None:
     return None
 
 
+DIRECT_VIEW_IN_MIRROR = 0.5
+"""Share of a cube's direct image (the hull of its vertices seen straight by the camera) lying on the
+mirror above which, with the cube nearer than the mirror, it is taken to stand between them."""
+
+DIRECT_VIEW_SEEN = 0.25
+"""Share of the mirror pixels such a cube would hide that must belong to some detected blob for it to
+be kept: a cube standing there would itself show in the mirror region, as a blob."""
+
+
+def _cube_vertices(est: CubeEstimate, up) -> np.ndarray:
+    """(8, 3) float64: the cube's corners, its front face along `est.normal` and an edge along `up`
+    (the mirror axis; any direction across the normal when None)."""
+    n = est.normal / np.linalg.norm(est.normal)
+    u = np.array([0.0, 1.0, 0.0]) if up is None else np.asarray(up, dtype=np.float64)
+    u = u - (u @ n) * n
+    if np.linalg.norm(u) < 1e-9:
+        u = np.cross(n, [1.0, 0.0, 0.0])
+    u = u / np.linalg.norm(u)
+    w = np.cross(n, u)
+    signs = np.array([(a, b, c) for a in (-1, 1) for b in (-1, 1) for c in (-1, 1)], dtype=np.float64)
+    return est.center + 0.5 * est.size * signs @ np.stack([n, u, w])
+
+
+def _direct_view_reason(camera, mirror, est: CubeEstimate, mirror_region, blobs, up) -> str | None:
+    """Why a cube is not where the estimate puts it, because the camera would see it there, or None.
+
+    The image is of reflections: a cube standing between the camera and the mirror would hide part of
+    the mirror and show there itself, as a blob of the mirror region. Where the estimate puts a cube so
+    (over `DIRECT_VIEW_IN_MIRROR` of its direct image on the mirror, its centre nearer than the mirror
+    along its ray) and under `DIRECT_VIEW_SEEN` of the pixels it would hide belong to any detected blob,
+    the face was no cube's reflection: the shadows of cubes on a floor, quadrilaterals fitting a square
+    face as well as a grey cube's (edge misfit 0.15–0.30 px), are put 1.2–1.4 mirror radii from the
+    axis, right in front of the mirror (lighting bench, floor2 case)."""
+    px, z_cam = camera.project(_cube_vertices(est, up))
+    if np.any(z_cam <= 0):
+        return None
+    h, w = mirror_region.shape
+    lo, hi = px.min(axis=0), px.max(axis=0)
+    if hi[0] < 0 or hi[1] < 0 or lo[0] >= w or lo[1] >= h:
+        return None
+    hull = np.zeros((h, w), dtype=np.uint8)
+    cv2.fillConvexPoly(hull, np.round(cv2.convexHull(px.astype(np.float32))[:, 0]).astype(np.int32), 1)
+    hull = hull.astype(bool)
+    hidden = hull & mirror_region
+    if hidden.sum() <= DIRECT_VIEW_IN_MIRROR * max(int(hull.sum()), 1):
+        return None
+    centre_px, _ = camera.project(est.center[None])
+    origins, directions = camera.rays(centre_px)
+    t, hit, _, _ = mirror.intersect(origins, directions)
+    if not hit[0] or np.linalg.norm(est.center - camera.position) >= t[0]:
+        return None
+    seen = float((hidden & blobs).sum()) / float(hidden.sum())
+    if seen >= DIRECT_VIEW_SEEN:
+        return None
+    u, v = centre_px[0]
+    return (f"it would stand between the camera and the mirror, hiding the mirror around ({u:.0f}, {v:.0f}) px, "
+            f"where no such object shows (a shadow?)")
+
+
 def _side_to_grow(failed) -> int | None:
     """The side of a failed outline across which its face mask is grown to the blob: one with no contrast
     at all, else a left or right one with too few edge points of contrast or too few consistent ones
@@ -206,6 +265,9 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         return r.points, r.directions
 
     detections = detect_cubes(despeckled(img) if compressed else img, mask)
+    blobs = np.zeros(mask.shape, dtype=bool)  # every blob's pixels, refused ones too
+    for det in detections:
+        blobs |= det.mask
     thin_strips = not compressed  # JPEG ringing beside an edge mimics a thin strip
     cubes, refused, measured, blurred = [], [], [], []
     achromatic = set()  # indices into measured of the faces found without colour
@@ -285,6 +347,9 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             continue
         if k in achromatic and (shadow := _shadow_reason(rays, meas, est, cube_size, up)):
             refused.append(Refusal(bbox, shadow))
+            continue
+        if direct := _direct_view_reason(camera, mirror, est, mask, blobs, up):
+            refused.append(Refusal(bbox, f"{est.method}: {direct}"))
             continue
         depth = float(mirror.distance_to_axis(est.center[None])[0])
         cubes.append(CubeResult(estimate=est, depth=depth, depth_std=float(est.std.get("z", np.nan)),

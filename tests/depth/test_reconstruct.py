@@ -1,0 +1,83 @@
+"""Tests of depth.reconstruct's physical checks on an estimate, on analytic geometry (no renderer)."""
+
+import numpy as np
+import pytest
+
+from depth.estimate import CubeEstimate
+from depth.reconstruct import _cube_vertices, _direct_view_reason
+from raytrace.truth import mirror_mask
+
+
+def _cube_at(centre, size=0.02, normal=(0.0, 0.0, -1.0)):
+    centre = np.asarray(centre, dtype=np.float64)
+    return CubeEstimate(method="exact", center=centre, size=size, z=float(np.hypot(centre[0], centre[2])),
+                        front_face_center=centre, normal=np.asarray(normal, dtype=np.float64),
+                        aspect_ratio=1.0, std={})
+
+
+def test_cube_vertices_are_a_cube_of_the_estimated_size_about_its_centre():
+    est = _cube_at((0.1, 0.02, 0.4), size=0.03, normal=(0.6, 0.0, -0.8))
+    v = _cube_vertices(est, (0.0, 1.0, 0.0))
+    assert np.allclose(v.mean(axis=0), est.center)
+    d = np.linalg.norm(v[:, None] - v[None], axis=-1)
+    # a cube's 28 vertex pairs: 12 edges, 12 face diagonals, 4 space diagonals
+    assert np.allclose(np.sort(d[np.triu_indices(8, 1)]),
+                       np.repeat(0.03 * np.array([1.0, np.sqrt(2.0), np.sqrt(3.0)]), [12, 12, 4]))
+    # one edge direction along the normal, one along the axis
+    edges = (v[:, None] - v[None])[np.isclose(d, 0.03)]
+    assert np.any(np.isclose(np.abs(edges @ est.normal), 0.03))
+    assert np.any(np.isclose(np.abs(edges[:, 1]), 0.03))
+
+
+@pytest.fixture(scope="module")
+def setup():
+    from raytrace.camera import PinholeCamera
+    from raytrace.mirror import CylinderMirror
+    camera = PinholeCamera.from_look_at((640, 480), (1400.0, 1400.0), None, (0.0, 0.0, 0.55), (0, 0, 0), (0, 1, 0))
+    mirror = CylinderMirror(0.1, 0.49, (0, 0, 0), (0, 1, 0))
+    return camera, mirror, mirror_mask(camera, mirror)
+
+
+def test_a_cube_between_the_camera_and_the_mirror_showing_nowhere_is_refused(setup):
+    """A cube put halfway between the camera and the mirror, on the ray through pixel (400, 300), would
+    hide the mirror around that pixel: with no blob there it is refused, and the reason names the place
+    (the camera's own projection of the cube's centre, within a pixel)."""
+    camera, mirror, region = setup
+    o, d = camera.rays(np.array([[400.0, 300.0]]))
+    t, hit, _, _ = mirror.intersect(o, d)
+    assert hit[0]
+    est = _cube_at(o[0] + 0.5 * t[0] * d[0])
+    no_blobs = np.zeros_like(region)
+    reason = _direct_view_reason(camera, mirror, est, region, no_blobs, mirror.axis)
+    assert reason is not None and "between the camera and the mirror" in reason
+    u, v = (float(x) for x in reason.split("around (")[1].split(")")[0].split(","))
+    assert np.hypot(u - 400.0, v - 300.0) < 1.0
+
+
+def test_a_cube_between_the_camera_and_the_mirror_that_shows_there_is_kept(setup):
+    """The same cube where the image shows a blob over its direct image: a real cube standing there."""
+    camera, mirror, region = setup
+    o, d = camera.rays(np.array([[400.0, 300.0]]))
+    t, _, _, _ = mirror.intersect(o, d)
+    est = _cube_at(o[0] + 0.5 * t[0] * d[0])
+    px, _ = camera.project(_cube_vertices(est, mirror.axis))
+    blobs = np.zeros_like(region)
+    (u0, v0), (u1, v1) = np.floor(px.min(axis=0)).astype(int), np.ceil(px.max(axis=0)).astype(int)
+    blobs[v0:v1 + 1, u0:u1 + 1] = True
+    assert _direct_view_reason(camera, mirror, est, region, blobs, mirror.axis) is None
+
+
+@pytest.mark.parametrize("centre", [
+    (0.0, 0.0, 0.8),     # behind the camera
+    (0.3, 0.0, 0.3),     # beside the mirror, out of the camera's view (the usual place of a cube)
+    (0.0, 0.0, -0.3),    # behind the mirror, hidden by it
+    (0.114, 0.0, 0.0),   # in view, beside the mirror's image, not in front of it
+])
+def test_cubes_not_standing_before_the_mirror_are_not_refused(setup, centre):
+    camera, mirror, region = setup
+    est = _cube_at(centre, size=0.01)
+    if centre == (0.114, 0.0, 0.0):  # the case is what it says: in the image, off the mirror
+        px, _ = camera.project(_cube_vertices(est, mirror.axis))
+        assert np.all((px > 0) & (px < [640, 480]))
+        assert not region[np.round(px[:, 1]).astype(int), np.round(px[:, 0]).astype(int)].any()
+    assert _direct_view_reason(camera, mirror, est, region, np.zeros_like(region), mirror.axis) is None
