@@ -14,7 +14,9 @@ Mitsuba 3 (`scalar_rgb`, 16 spp, Gaussian pixel filter) under three lights:
 - ``floor, any sun``: 12 more scenes (`make_scenes(12, seed=31415)`) standing on a grey floor
   (the mirror reflects it under the cubes, and the cubes and the mirror cast shadows), under a sky
   that brightens toward the zenith and varies with azimuth, and a sun from a direction drawn per
-  scene, behind the mirror as often as in front (`floor_render`).
+  scene, behind the mirror as often as in front (`floor_render`); again under a second set of suns
+  (``floor, suns 2``), and with the cubes painted in `GREYS` (``floor any-sun grey``): grey cubes
+  where the mirror shows no one background colour (a sky over a floor).
 
 and runs `depth.reconstruct` (`exact`) on each image. Per light it prints recall, false positives,
 the median / 90th percentile / max of the centre error ‖ĉ − c‖ / (distance of c to the axis), the
@@ -152,10 +154,15 @@ def main() -> int:
           "centre error = |c_hat - c| / distance(c, axis)")
     print(f"{'light':14s} {'found':>7s} {'FP':>3s} | {'centre med':>10s} {'p90':>6s} {'max':>6s} | "
           f"{'size med':>8s} | within 1 / 2 sigma | blur domain chosen: encoded / linear")
-    for light, grey in [(light, False) for light in LIGHTS] + [("sun-front", True), ("floor", False), ("floor2", False)]:
+    cases = [(light, False) for light in LIGHTS] + [("sun-front", True), ("floor", False), ("floor2", False),
+                                                    ("floor", True)]
+    for light, grey in cases:
         r = score(light, grey)
         c, sz, z = r["centre"] * 100, r["size"] * 100, r["z"]
-        label = {"floor": "floor any-sun", "floor2": "floor, suns 2"}.get(light, light + (" grey" if grey else ""))
+        label = {"floor": "floor any-sun", "floor2": "floor, suns 2"}.get(light, light) + (" grey" if grey else "")
+        if not len(c):
+            print(f"{label:14s} {r['found']:3d}/{r['total']:<3d} {r['fp']:3d} | (no cube found)", flush=True)
+            continue
         print(f"{label:14s} {r['found']:3d}/{r['total']:<3d} {r['fp']:3d} | {np.median(c):9.2f}% "
               f"{np.percentile(c, 90):5.1f}% {c.max():5.1f}% | {np.median(sz):7.2f}% | "
               f"{np.mean(z <= 1) * 100:3.0f} / {np.mean(z <= 2) * 100:3.0f} % | {r['encoded']} / {r['linear']}",
