@@ -290,6 +290,7 @@ def test_a_quadrilateral_shadow_is_not_taken_for_a_cube_before_the_mirror(tmp_pa
     loaded = load_setup(path)
     camera, mirror = loaded.camera.build(), loaded.mirror.build()
     found = reconstruct(img, camera, mirror).cubes
+    assert len(found) == 2
     centre = np.array([320.0, 380.0])
     rectangle = centre + np.array([[-8, -13], [8, -13], [8, 13], [-8, 13]], dtype=np.float64)
     rec = reconstruct(_shadowed(img, rectangle), camera, mirror)
