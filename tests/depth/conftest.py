@@ -34,6 +34,11 @@ class MirrorRig:
         rot = Rotation.from_euler("y", yaw).as_matrix() @ Rotation.from_euler("z", np.deg2rad(roll_deg)).as_matrix()
         return Cube(size, c, rot)
 
+    def silhouette(self, cube, n=40):
+        """`silhouette_measurement` of `cube` (a method, so that tests reach it through the `rig`
+        fixture: importing `conftest` picks whichever conftest module was loaded first)."""
+        return silhouette_measurement(self, cube, n)
+
     def measure(self, cube, n=50, noise_px=0.0, seed=0, gaps=False, side_offset_px=0.0, merged=False):
         """Exact (or noisy) FaceMeasurement of the cube's front face, with the silhouette of its back
         vertical edges where a side face shows (more than 0.75 px beyond the front face). `gaps`: also

@@ -286,9 +286,8 @@ def test_exact_recovers_a_uniformly_lit_cube_from_its_silhouette(rig, height, ya
     """Every face lit alike (a sky, no sun): the image gives only the cube's silhouette, top or bottom
     face included. The silhouette comes from ray–box hits, not from the estimator's model; read as
     merged faces it gives the cube back; read as the front face alone it does not."""
-    from conftest import silhouette_measurement
     cube = rig.cube(0.5, 8.0, height=height, yaw_deg=yaw)
-    meas = silhouette_measurement(rig, cube)
+    meas = rig.silhouette(cube)
     est = estimate_face(rig.rays, meas, method="exact", up=rig.mirror.axis)
     assert est and centre_error(rig, est, cube) < 1e-3
     assert est.size == pytest.approx(cube.size, rel=1e-3)
@@ -304,9 +303,8 @@ def test_a_merged_top_or_bottom_face_is_tried_where_a_thin_strip_was_read_beside
     thin strip (lighting holdout: a 0.76 px strip beside an 8 px bottom face). The merged reading must
     still be tried, and stand where it explains the outline: before, a strip ruled it out and the
     cube came out 23 % off (6.7 σ)."""
-    from conftest import silhouette_measurement
     cube = rig.cube(0.5, 8.0, height=height, yaw_deg=yaw)
-    meas = silhouette_measurement(rig, cube)
+    meas = rig.silhouette(cube)
     strips = [0.0] * 4
     strips[2 if height < 0 else 3] = 0.76  # top for a cube below the camera, else bottom
     est = estimate_face(rig.rays, dataclasses.replace(meas, strip_px=tuple(strips)), method="exact",
@@ -319,16 +317,15 @@ def test_a_merged_top_or_bottom_face_is_tried_where_a_thin_strip_was_read_beside
 def test_a_merged_top_or_bottom_face_beside_a_distinct_side_face(rig, height, yaw):
     """A sun from the side sets one side face apart, while the top (cube below the camera) or bottom
     face takes the sky light the front face takes and merges with it: that side of the outline is the
-    cube's silhouette, found from ray–box hits (`silhouette_measurement`), the rest the front face's
+    cube's silhouette, found from ray–box hits (`MirrorRig.silhouette`), the rest the front face's
     exact edges with the back edge of the distinct side face. Read as merged it gives the cube back;
     read as the front face's own edge (gap unknown) it does not."""
-    from conftest import silhouette_measurement
     cube = rig.cube(0.5, 8.0, height=height, yaw_deg=yaw)
     meas = rig.measure(cube, gaps=True)
     assert sum(b is not None for b in meas.back_sides_px) == 1  # one distinct side face
     k = 2 if height < 0 else 3  # the side whose face is seen: top for a cube below the camera
     sides = list(meas.sides_px)
-    sides[k] = silhouette_measurement(rig, cube).sides_px[k]
+    sides[k] = rig.silhouette(cube).sides_px[k]
     gaps = list(meas.side_gaps_px) + [np.nan, np.nan]
     gaps[k] = 0.0
     merged = dataclasses.replace(meas, sides_px=tuple(sides), side_gaps_px=tuple(gaps))
