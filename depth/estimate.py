@@ -533,15 +533,11 @@ def _face_extent_px(directions, sgn, size, along, normal, px_per_m) -> np.ndarra
         return sgn * np.asarray(size)[..., None] * (along @ directions.T) / (normal @ directions.T) * px_per_m
 
 
-def _exact(*args) -> CubeEstimate | FailedEstimate:
-    """`_exact_fit` without numpy's floating-point warnings: poses the solver tries on its way can be
-    degenerate (a size overflowing, a face edge-on). Their residuals are set finite and a diverged answer
-    is refused, so the warnings would only alarm the user."""
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        return _exact_fit(*args)
-
-
-def _exact_fit(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local: LocalXSlit,
+# Without numpy's floating-point warnings: poses the solver tries on its way can be degenerate (a size
+# overflowing, a face edge-on). Their residuals are set finite and a diverged answer is refused, so the
+# warnings would only alarm the user.
+@np.errstate(over="ignore", invalid="ignore", divide="ignore")
+def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local: LocalXSlit,
            cube_size: float | None, up=None) -> CubeEstimate | FailedEstimate:
     """Non-central PnP of the square face (and its back vertical edges) from exact per-pixel rays.
 

@@ -18,6 +18,7 @@ from depth.errors import DepthError
 from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED, METHODS,
                             NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, CubeEstimate, FaceMeasurement,
                             estimate_face, estimate_faces_shape_prior)
+from raytrace.scene import Cube
 
 __all__ = ["ALL_METHODS", "CubeResult", "Refusal", "Reconstruction", "reconstruct", "check_image"]
 
@@ -174,9 +175,7 @@ def _cube_vertices(est: CubeEstimate, up) -> np.ndarray:
     if np.linalg.norm(u) < 1e-9:
         u = np.cross(n, [1.0, 0.0, 0.0])
     u = u / np.linalg.norm(u)
-    w = np.cross(n, u)
-    signs = np.array([(a, b, c) for a in (-1, 1) for b in (-1, 1) for c in (-1, 1)], dtype=np.float64)
-    return est.center + 0.5 * est.size * signs @ np.stack([n, u, w])
+    return Cube(est.size, est.center, np.column_stack([u, np.cross(n, u), n])).vertices()
 
 
 def _direct_view_reason(camera, mirror, est: CubeEstimate, mirror_region, blobs, up) -> str | None:
@@ -202,14 +201,15 @@ def _direct_view_reason(camera, mirror, est: CubeEstimate, mirror_region, blobs,
     hidden = hull & mirror_region
     if hidden.sum() <= DIRECT_VIEW_IN_MIRROR * max(int(hull.sum()), 1):
         return None
-    centre_px, _ = camera.project(est.center[None])
-    origins, directions = camera.rays(centre_px)
-    t, hit, _, _ = mirror.intersect(origins, directions)
-    if not hit[0] or np.linalg.norm(est.center - camera.position) >= t[0]:
+    offset = est.center - camera.position
+    distance = float(np.linalg.norm(offset))
+    t, hit, _, _ = mirror.intersect(camera.position[None], offset[None] / distance)
+    if not hit[0] or distance >= t[0]:
         return None
     seen = float((hidden & blobs).sum()) / float(hidden.sum())
     if seen >= DIRECT_VIEW_SEEN:
         return None
+    centre_px, _ = camera.project(est.center[None])
     u, v = centre_px[0]
     return (f"it would stand between the camera and the mirror, hiding the mirror around ({u:.0f}, {v:.0f}) px, "
             f"where no such object shows (a shadow?)")
