@@ -996,6 +996,11 @@ def estimate_faces_shape_prior(rays: RayFunction, measurements, seed: int = 0) -
             out[i] = FailedEstimate("shape_prior", str(exc))
         return out
     size = 0.5 * (sol.kappa_x + sol.kappa_y)
+    if not size > 0.0:  # the linear solve knows no sign: cubes of other sizes can drive it through zero
+        for i in ok:
+            out[i] = FailedEstimate("shape_prior", f"the joint solution's common size is {size:.3g} m, not "
+                                                   "positive: the cubes are not all one size")
+        return out
     size_std = 0.5 * float(np.hypot(sol.kappa_x_std, sol.kappa_y_std))
     for j, i in enumerate(ok):
         local, kap = prepared[i]

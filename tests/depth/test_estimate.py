@@ -144,6 +144,18 @@ def test_shape_prior_recovers_common_size_of_identical_cubes(rig):
     assert not single[0] and "at least 2" in single[0].reason
 
 
+@pytest.mark.parametrize("sizes, distances", [((0.02, 0.08), (0.35, 0.85)), ((0.03, 0.06), (0.5, 0.6))])
+def test_shape_prior_refuses_cubes_of_other_sizes_whose_joint_size_comes_out_negative(rig, sizes, distances):
+    # the joint least squares has no sign constraint: two cubes 4x (2x) apart in size drive the common
+    # size below zero. That is no cube: refused, not returned (a negative size crashed `reconstruct`).
+    from depth.estimate import estimate_faces_shape_prior
+    cubes = [rig.cube(d, az, size=s) for d, az, s in zip(distances, (-20.0, 15.0), sizes)]
+    ests = estimate_faces_shape_prior(rig.rays, [rig.measure(c) for c in cubes])
+    assert len(ests) == 2
+    for est in ests:
+        assert not est and est.method == "shape_prior" and "not all one size" in est.reason
+
+
 @pytest.mark.parametrize("yaw", [25.0, -25.0])
 def test_exact_on_turned_cubes_with_noisy_edges_uses_the_back_edge(rig, yaw):
     # A face turned 25° shows a side face; its back vertical edge pins the turn. Without it the
