@@ -16,7 +16,7 @@ Mitsuba 3 (`scalar_rgb`, 16 spp, Gaussian pixel filter) under three lights:
   that brightens toward the zenith and varies with azimuth, and a sun from a direction drawn per
   scene, behind the mirror as often as in front (`floor_render`); again under a second set of suns
   (``floor, suns 2``), and with the cubes painted in `GREYS` (``floor any-sun grey``): grey cubes
-  where the mirror shows no one background colour (a sky over a floor).
+  where the mirror shows no one background colour (a sky over a floor), found as regions enclosed by edges.
 
 and runs `depth.reconstruct` (`exact`) on each image. Per light it prints recall, false positives,
 the median / 90th percentile / max of the centre error ‖ĉ − c‖ / (distance of c to the axis), the

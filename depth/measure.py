@@ -243,24 +243,29 @@ def _chroma_hue_value(rgb: np.ndarray):
     return chroma, hue, mx
 
 
-def _achromatic_regions(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarray, min_area: int,
-                        background_share: float = 0.5, ring_share: float = 0.9) -> list:
-    """Grey, white or black objects: regions of another colour than a uniform background, each as
-    (local mask, (row, col) offset), in the window of its bounding box.
+ENCLOSING_EDGE_CONTRAST = (0.025, 0.05)
+"""Steps of sRGB value (weak, strong) that Canny's hysteresis takes for the edges enclosing a grey,
+white or black object on a background of no one colour (`_enclosed`): a step of Δ blurred by the
+σ = 1 px Gaussian gives a 3×3 Sobel response of about 3.2 Δ × 255. A smooth background (a sky
+reflected in a cylinder, ramps up to 0.02 per px) stays below the strong one."""
 
-    The background is the median colour of the mirror's pixels outside the coloured blobs, kept only
-    where at least `background_share` of them lie within its noise band (the largest channel
-    difference up to `band` = max(0.02, 4 × its median over the pixels within 0.05 of the background,
-    about 5.6 σ of Gaussian noise)). Pixels that differ from it by more are grown by hysteresis
-    (seeds beyond twice the band); a region is an object only where the ring
-    of pixels 1–2 px around it is background (at least `ring_share` of it): a cell of a checkered
-    ground borders other cells. Regions within 3 px of a coloured blob are left out: there they are a
-    coloured cube's dark or washed-out face, not another object.
-    """
-    rest = search & ~coloured
+
+UNIFORM_RIM_SHARE = 0.1
+"""Share of the mirror's background pixels above which pixels of another colour than the background,
+in regions reaching the mirror's edge, say the background is not of one colour (`_uniform_background`)."""
+
+
+def _uniform_background(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, min_area: int,
+                        background_share: float):
+    """(background pixels, seed pixels) where the mirror shows one background colour, else None.
+
+    The background is the median colour of `rest`, kept only where at least `background_share` of
+    its pixels lie within its noise band (the largest channel difference up to `band` = max(0.02,
+    4 × its median over the pixels within 0.05 of the background, about 5.6 σ of Gaussian noise))
+    and where the pixels outside it, in regions reaching the edge of the mirror region, are under
+    `UNIFORM_RIM_SHARE` of `rest` (a sky shading across the mirror leaves whole bands outside it);
+    seeds differ from it by over twice the band."""
     n_rest = int(rest.sum())
-    if n_rest < min_area:
-        return []
     sample = np.flatnonzero(rest)[:: max(n_rest // 100_000, 1)]  # medians of a regular subsample
     background = np.median(rgb.reshape(-1, 3)[sample], axis=0)
     dist = np.abs(rgb[..., 0] - background[0])
@@ -269,15 +274,107 @@ def _achromatic_regions(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarra
     close = dist.ravel()[sample]
     close = close[close <= 0.05]  # the background's own pixels, for its noise
     if close.size * (n_rest / len(sample)) < min_area:
-        return []
+        return None
     band = max(0.02, 4.0 * float(np.median(close)))
     near = dist <= band
     if np.mean(near[rest]) < background_share:
+        return None
+    other = rest & ~near
+    n_lab, labels = cv2.connectedComponents(other.astype(np.uint8), connectivity=8)
+    outer = np.zeros(n_lab, dtype=bool)
+    outer[np.unique(labels[_rim(search) & other])] = True
+    outer[0] = False
+    if np.count_nonzero(outer[labels]) > UNIFORM_RIM_SHARE * np.count_nonzero(rest):
+        return None
+    return near, dist > 2.0 * band
+
+
+def _rim(search: np.ndarray) -> np.ndarray:
+    """The pixels of `search` within 2 px of its edge."""
+    return search & ~cv2.erode(search.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+
+
+def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_share: float):
+    """(background pixels, seed pixels) of a background of no one colour, else None.
+
+    A sky reflected in a cylinder shades smoothly across the mirror and meets the floor at a
+    horizon; objects are bounded by steps. Edges are Canny's on the channel of the largest
+    gradient (`ENCLOSING_EDGE_CONTRAST`), thickened to 3 px to close gaps at corners; the
+    background is every region between them that reaches the edge of the mirror region (an object
+    reaching it would be cut anyway), kept only where it holds `background_share` of `rest` (a
+    checkered ground's cells are enclosed each). Every enclosed pixel is a seed."""
+    u8 = cv2.GaussianBlur(cv2.convertScaleAbs(rgb, alpha=255.0), (0, 0), 1.0)  # rounds and saturates
+    dx, dy = cv2.Sobel(u8, cv2.CV_16S, 1, 0), cv2.Sobel(u8, cv2.CV_16S, 0, 1)
+    k = np.argmax(np.abs(dx.astype(np.int32)) + np.abs(dy), axis=2)[..., None]
+    dx = np.ascontiguousarray(np.take_along_axis(dx, k, axis=2)[..., 0])
+    dy = np.ascontiguousarray(np.take_along_axis(dy, k, axis=2)[..., 0])
+    weak, strong = (3.2 * 255.0 * c for c in ENCLOSING_EDGE_CONTRAST)
+    edges = cv2.Canny(dx, dy, weak, strong, L2gradient=True) > 0
+    square = np.ones((3, 3), np.uint8)
+    free = search & ~cv2.dilate((edges & search).astype(np.uint8), square).astype(bool)
+    n_lab, labels = cv2.connectedComponents(free.astype(np.uint8), connectivity=4)
+    outer = np.zeros(n_lab, dtype=bool)
+    outer[np.unique(labels[_rim(search) & free])] = True
+    outer[0] = False
+    near = outer[labels]
+    if np.mean(near[rest]) < background_share:
+        return None
+    # The 3 px band of each edge beside an enclosed region: a pixel there is the region's where its
+    # colour leaves the nearest background pixel's (3 × 3 mean) by more than the background's noise
+    # band (as `_uniform_background`'s), so that a region ends where its colour does, not 1–2 px
+    # beyond it in the background.
+    band = search & ~free
+    inside = free & ~near
+    if inside.any():
+        ref = cv2.blur(rgb, (3, 3))
+        sample = np.flatnonzero(near)[:: max(int(near.sum()) // 100_000, 1)]
+        noise = np.abs(rgb.reshape(-1, 3)[sample] - ref.reshape(-1, 3)[sample]).max(axis=1)
+        level = max(0.02, 4.0 * float(np.median(noise[noise <= 0.05]))) if np.any(noise <= 0.05) else 0.02
+        dist_in = cv2.distanceTransform((~inside).astype(np.uint8), cv2.DIST_L2, 5)
+        d_bg = np.abs(rgb[band] - ref.reshape(-1, 3)[_nearest(near, band)]).max(axis=1)
+        near[band] = ~((d_bg > level) & (dist_in[band] <= 3.0))
+    return near, search & ~near
+
+
+def _nearest(mask: np.ndarray, where: np.ndarray) -> np.ndarray:
+    """Flat index of the pixel of `mask` nearest to each pixel of `where`."""
+    _, lab = cv2.distanceTransformWithLabels((~mask).astype(np.uint8), cv2.DIST_L2, 5,
+                                             labelType=cv2.DIST_LABEL_PIXEL)
+    return np.flatnonzero(mask)[lab[where] - 1]  # labels number `mask`'s pixels in raster order
+
+
+def _achromatic_regions(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarray, min_area: int,
+                        background_share: float = 0.5, ring_share: float = 0.9) -> list:
+    """Grey, white or black objects: regions that are not background, each as (local mask,
+    (row, col) offset), in the window of its bounding box.
+
+    The background is the mirror's one colour where it shows one (`_uniform_background`: pixels of
+    another colour are grown by hysteresis from seeds), else the regions between the edges that
+    reach the mirror's edge (`_enclosed`). Regions of lines under 5 px wide are dropped and taken for
+    background. A region is an object only where the ring of pixels 1–2 px around it is background
+    (at least `ring_share` of it): a cell of a checkered ground borders other cells. Regions within 3 px of a coloured blob are left out: there
+    they are a coloured cube's dark or washed-out face, not another object.
+    """
+    rest = search & ~coloured
+    if int(rest.sum()) < min_area:
         return []
+    found = _uniform_background(rgb, search, rest, min_area, background_share)
+    if found is None:
+        found = _enclosed(rgb, search, rest, background_share)
+    if found is None:
+        return []
+    near, seeds = found
     weak = rest & ~near
     n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(weak.astype(np.uint8), connectivity=8)
+    # A region holding no 5 × 5 block is a line: pixels mixing two background colours along a
+    # horizon, or the edge between two background regions. It is taken for background.
+    core = cv2.erode(weak.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    thick = np.zeros(n_lab, dtype=bool)
+    thick[np.unique(labels[core])] = True
+    near = near | (weak & ~thick[labels])
     keep = np.zeros(n_lab, dtype=bool)
-    keep[np.unique(labels[weak & (dist > 2.0 * band)])] = True
+    keep[np.unique(labels[weak & seeds])] = True
+    keep &= thick
     near_coloured = cv2.dilate(coloured.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
     keep[np.unique(labels[near_coloured & weak])] = False
     keep[0] = False
@@ -341,9 +438,10 @@ def detect_cubes(
     Coloured pixels (chroma = max − min of sRGB above `min_chroma`, grown by hysteresis
     from seeds above `seed_chroma`) inside `mirror_mask` are grouped into connected blobs;
     a blob holding several distinct hues (touching cubes of different colours) is split
-    by hue. Grey, white or black cubes are found where the mirror shows a uniform background,
-    as regions of another colour than it (`_achromatic_regions`); on a textured background
-    (a checkered ground) only coloured cubes are found. Each blob's faces are separated by
+    by hue. Grey, white or black cubes are found as regions of another colour than a uniform
+    background, or, where the background shades smoothly (a sky, a floor and their horizon), as
+    regions enclosed by edges (`_achromatic_regions`); on a textured background (a checkered
+    ground) only coloured cubes are found. Each blob's faces are separated by
     brightness (modes of the histogram of the sRGB value max(R, G, B)); the largest connected
     region of one brightness is the front face.
 

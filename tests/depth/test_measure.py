@@ -117,6 +117,10 @@ def make_image(shape, cubes, mirror=None, background="checker", noise=0.0, seed=
         ca, sa, cell = np.cos(0.5), np.sin(0.5), 7.3
         k = (np.floor((ca * u + sa * v + 0.31) / cell) + np.floor((ca * v - sa * u + 0.17) / cell)) % 2
         img[:] = np.where(k[..., None] > 0, 0.45, 0.22)
+    elif background == "sky":  # a sky shading ±40 % across the mirror over a floor, a wavy horizon
+        sky = 0.5 * (1.0 + 0.4 * np.sin(2.0 * np.pi * u / 90.0))[..., None] * np.array([0.9, 0.95, 1.0])
+        floor = v > 0.86 * h + 5.0 * np.sin(2.0 * np.pi * u / 70.0)
+        img[:] = np.where(floor[..., None], np.array([0.2, 0.2, 0.24]), sky)
     else:
         img[:] = 0.35
     for c in cubes:
@@ -237,6 +241,26 @@ def test_grey_white_and_black_cubes_are_found_on_a_uniform_background(albedos):
         assert iou > 0.9
         if np.ptp(c.albedo) == 0.0 or c.albedo == COLOURS["green"]:  # found without colour, or by it
             assert d.achromatic == (np.ptp(c.albedo) == 0.0)
+
+
+@pytest.mark.parametrize("albedos", [
+    [(0.8, 0.8, 0.8), (0.3, 0.3, 0.3), (0.05, 0.05, 0.05)],
+    [(0.95, 0.95, 0.95), (0.05, 0.05, 0.05), (0.25, 0.25, 0.25)],  # each unlike the sky behind it
+])
+def test_grey_white_and_black_cubes_are_found_on_a_sky_shading_over_a_floor(albedos):
+    """No one background colour: a sky shading ±40 % across the mirror (a sky map reflected in a
+    cylinder) over a floor. The cubes are the regions enclosed by edges; each is found once, without
+    colour, its blob ending where its colour does (front face IoU > 0.9), and the horizon between sky
+    and floor is no object."""
+    cubes = [dataclasses.replace(c, albedo=a) for c, a in zip(three_cubes(), albedos)]
+    image, mirror = make_image((200, 240), cubes, background="sky", noise=2 / 255)
+    detections = detect_cubes(image, mirror)
+    assert len(detections) == len(cubes)
+    for d, c in zip(match(detections, cubes), cubes):
+        assert d.usable and d.achromatic, d.reason
+        face = pixel_truth(image.shape[:2], c, "face")
+        iou = (d.front_face_mask & face).sum() / (d.front_face_mask | face).sum()
+        assert iou > 0.9
 
 
 def test_grey_cubes_are_not_looked_for_on_a_checkered_background():
