@@ -250,6 +250,12 @@ white or black object on a background of no one colour (`_enclosed`): a step of 
 reflected in a cylinder, ramps up to 0.02 per px) stays below the strong one."""
 
 
+ENCLOSING_CLUTTER = 0.1
+"""Largest share of edge pixels 3–8 px around a region enclosed by edges for it to be an object: the
+grey cubes of the lighting bench's floor scenes and of its holdout renders have 0–0.03 there, the
+blobs left where blur merges a far checkered ground's cells 0.17–0.48."""
+
+
 UNIFORM_RIM_SHARE = 0.1
 """Share of the mirror's background pixels above which pixels of another colour than the background,
 in regions reaching the mirror's edge, say the background is not of one colour (`_uniform_background`)."""
@@ -257,7 +263,7 @@ in regions reaching the mirror's edge, say the background is not of one colour (
 
 def _uniform_background(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, min_area: int,
                         background_share: float):
-    """(background pixels, seed pixels) where the mirror shows one background colour, else None.
+    """(background pixels, seed pixels, None) where the mirror shows one background colour, else None.
 
     The background is the median colour of `rest`, kept only where at least `background_share` of
     its pixels lie within its noise band (the largest channel difference up to `band` = max(0.02,
@@ -286,7 +292,7 @@ def _uniform_background(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, m
     outer[0] = False
     if np.count_nonzero(outer[labels]) > UNIFORM_RIM_SHARE * np.count_nonzero(rest):
         return None
-    return near, dist > 2.0 * band
+    return near, dist > 2.0 * band, None
 
 
 def _rim(search: np.ndarray) -> np.ndarray:
@@ -295,7 +301,7 @@ def _rim(search: np.ndarray) -> np.ndarray:
 
 
 def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_share: float):
-    """(background pixels, seed pixels) of a background of no one colour, else None.
+    """(background pixels, seed pixels, edge pixels) of a background of no one colour, else None.
 
     A sky reflected in a cylinder shades smoothly across the mirror and meets the floor at a
     horizon; objects are bounded by steps. Edges are Canny's on the channel of the largest
@@ -333,7 +339,7 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
         dist_in = cv2.distanceTransform((~inside).astype(np.uint8), cv2.DIST_L2, 5)
         d_bg = np.abs(rgb[band] - ref.reshape(-1, 3)[_nearest(near, band)]).max(axis=1)
         near[band] = ~((d_bg > level) & (dist_in[band] <= 3.0))
-    return near, search & ~near
+    return near, search & ~near, edges
 
 
 def _nearest(mask: np.ndarray, where: np.ndarray) -> np.ndarray:
@@ -352,7 +358,8 @@ def _achromatic_regions(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarra
     another colour are grown by hysteresis from seeds), else the regions between the edges that
     reach the mirror's edge (`_enclosed`). Regions of lines under 5 px wide are dropped and taken for
     background. A region is an object only where the ring of pixels 1–2 px around it is background
-    (at least `ring_share` of it): a cell of a checkered ground borders other cells. Regions within 3 px of a coloured blob are left out: there
+    (at least `ring_share` of it): a cell of a checkered ground borders other cells. An enclosed
+    region is also one only where the pixels 3–8 px around it are under `ENCLOSING_CLUTTER` edges. Regions within 3 px of a coloured blob are left out: there
     they are a coloured cube's dark or washed-out face, not another object.
     """
     rest = search & ~coloured
@@ -363,7 +370,7 @@ def _achromatic_regions(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarra
         found = _enclosed(rgb, search, rest, background_share)
     if found is None:
         return []
-    near, seeds = found
+    near, seeds, edges = found
     weak = rest & ~near
     n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(weak.astype(np.uint8), connectivity=8)
     # A region holding no 5 × 5 block is a line: pixels mixing two background colours along a
@@ -385,8 +392,15 @@ def _achromatic_regions(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarra
         sl = (slice(y0, y + h + 2), slice(x0, x + w + 2))
         comp = labels[sl] == lab
         ring = cv2.dilate(comp.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool) & ~comp & search[sl]
-        if ring.any() and np.mean(near[sl][ring]) >= ring_share:
-            regions.append((labels[y : y + h, x : x + w] == lab, (y, x)))
+        if not (ring.any() and np.mean(near[sl][ring]) >= ring_share):
+            continue
+        if edges is not None:  # enclosed: in a smooth background, not among a texture's edges
+            sl = (slice(max(y - 8, 0), y + h + 8), slice(max(x - 8, 0), x + w + 8))
+            comp = (labels[sl] == lab).astype(np.uint8)
+            around = (cv2.dilate(comp, np.ones((17, 17), np.uint8)) > cv2.dilate(comp, np.ones((7, 7), np.uint8))) & search[sl]
+            if np.mean(edges[sl][around]) > ENCLOSING_CLUTTER:
+                continue
+        regions.append((labels[y : y + h, x : x + w] == lab, (y, x)))
     return regions
 
 

@@ -263,6 +263,39 @@ def test_grey_white_and_black_cubes_are_found_on_a_sky_shading_over_a_floor(albe
         assert iou > 0.9
 
 
+def sky_over_ground(blur, shape=(200, 240), supersample=2, seed=0):
+    """A black cube face in a plain sky over a checkered ground seen in perspective (its cells shrink
+    to under a pixel toward the horizon, sampled 2 × 2 per pixel: aliased), blurred by `blur` px;
+    sRGB with σ = 2/255 noise, and the mirror mask."""
+    import cv2
+    h, w = shape
+    ss = supersample
+    u, v = np.meshgrid((np.arange(w * ss) + 0.5) / ss - 0.5, (np.arange(h * ss) + 0.5) / ss - 0.5)
+    horizon = 0.55 * h
+    z = 200.0 / np.maximum(v - horizon, 1e-3)  # a camera 1 m above the ground, focal length 200 px
+    cell = (np.floor((u - w / 2) * z / 200.0 / 0.3) + np.floor(z / 0.3)) % 2
+    img = np.where((v > horizon)[..., None], np.where(cell > 0, 0.45, 0.15)[..., None], 0.6) * np.ones(3)
+    FakeCube((50.3, 20.6), (71.8, 21.4), (72.5, 90.2), (51.1, 89.1), albedo=(0.1, 0.1, 0.1), side=None).paint(img, u, v)
+    mirror = (w * 0.12 <= u) & (u <= w * 0.88) & (h * 0.05 <= v) & (v <= h * 0.95)
+    img[~mirror] = 0.08
+    lin = cv2.GaussianBlur(img.reshape(h, ss, w, ss, 3).mean(axis=(1, 3)), (0, 0), blur)
+    srgb = linear_to_srgb(lin) + np.random.default_rng(seed).normal(0.0, 2 / 255, lin.shape)
+    pu, pv = np.meshgrid(np.arange(w), np.arange(h))
+    return (np.round(np.clip(srgb, 0.0, 1.0) * 255.0) / 255.0,
+            (w * 0.12 <= pu) & (pu <= w * 0.88) & (h * 0.05 <= pv) & (pv <= h * 0.95))
+
+
+@pytest.mark.parametrize("blur", [0.7, 1.5, 2.0])
+def test_blobs_of_a_far_checkered_ground_are_no_grey_cubes(blur):
+    """Toward its horizon a checkered ground's cells alias and blur into blobs of one grey, enclosed
+    by edges like a cube's face, but among the edges of the other cells: only the cube in the sky is
+    found (without the clutter test 1–3 blobs of the ground were found too)."""
+    image, mirror = sky_over_ground(blur)
+    detections = detect_cubes(image, mirror)
+    assert [d.bbox[:2] for d in detections] in ([(50, 20)], [(50, 21)])
+    assert detections[0].usable and detections[0].achromatic
+
+
 def test_grey_cubes_are_not_looked_for_on_a_checkered_background():
     """On a textured background (the checker of a ground plane) regions of another grey than the
     background are not objects: grey cubes are not found, and nothing is invented, while a coloured
