@@ -286,12 +286,14 @@ def _uniform_background(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, m
     if np.mean(near[rest]) < background_share:
         return None
     other = rest & ~near
-    n_lab, labels = cv2.connectedComponents(other.astype(np.uint8), connectivity=8)
-    outer = np.zeros(n_lab, dtype=bool)
-    outer[np.unique(labels[_rim(search) & other])] = True
-    outer[0] = False
-    if np.count_nonzero(outer[labels]) > UNIFORM_RIM_SHARE * np.count_nonzero(rest):
-        return None
+    limit = UNIFORM_RIM_SHARE * np.count_nonzero(rest)
+    if np.count_nonzero(other) > limit:
+        n_lab, labels = cv2.connectedComponents(other.astype(np.uint8), connectivity=8)
+        outer = np.zeros(n_lab, dtype=bool)
+        outer[np.unique(labels[_rim(search) & other])] = True
+        outer[0] = False
+        if np.count_nonzero(outer[labels]) > limit:
+            return None
     return near, dist > 2.0 * band, None
 
 
@@ -311,7 +313,7 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
     checkered ground's cells are enclosed each). Every enclosed pixel is a seed."""
     u8 = cv2.GaussianBlur(cv2.convertScaleAbs(rgb, alpha=255.0), (0, 0), 1.0)  # rounds and saturates
     dx, dy = cv2.Sobel(u8, cv2.CV_16S, 1, 0), cv2.Sobel(u8, cv2.CV_16S, 0, 1)
-    k = np.argmax(np.abs(dx.astype(np.int32)) + np.abs(dy), axis=2)[..., None]
+    k = np.argmax(np.abs(dx) + np.abs(dy), axis=2)[..., None]  # each at most 4 × 255: int16 holds the sum
     dx = np.ascontiguousarray(np.take_along_axis(dx, k, axis=2)[..., 0])
     dy = np.ascontiguousarray(np.take_along_axis(dy, k, axis=2)[..., 0])
     weak, strong = (3.2 * 255.0 * c for c in ENCLOSING_EDGE_CONTRAST)
@@ -331,14 +333,15 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
     # beyond it in the background.
     band = search & ~free
     inside = free & ~near
+    background = near.copy()
+    near[band] = True
     if inside.any():
-        ref = cv2.blur(rgb, (3, 3))
-        sample = np.flatnonzero(near)[:: max(int(near.sum()) // 100_000, 1)]
-        noise = np.abs(rgb.reshape(-1, 3)[sample] - ref.reshape(-1, 3)[sample]).max(axis=1)
+        ref = cv2.blur(rgb, (3, 3)).reshape(-1, 3)
+        sample = np.flatnonzero(background)[:: max(int(background.sum()) // 100_000, 1)]
+        noise = np.abs(rgb.reshape(-1, 3)[sample] - ref[sample]).max(axis=1)
         level = max(0.02, 4.0 * float(np.median(noise[noise <= 0.05]))) if np.any(noise <= 0.05) else 0.02
-        dist_in = cv2.distanceTransform((~inside).astype(np.uint8), cv2.DIST_L2, 5)
-        d_bg = np.abs(rgb[band] - ref.reshape(-1, 3)[_nearest(near, band)]).max(axis=1)
-        near[band] = ~((d_bg > level) & (dist_in[band] <= 3.0))
+        band &= cv2.distanceTransform((~inside).astype(np.uint8), cv2.DIST_L2, 5) <= 3.0
+        near[band] = np.abs(rgb[band] - ref[_nearest(background, band)]).max(axis=1) <= level
     return near, search & ~near, edges
 
 
