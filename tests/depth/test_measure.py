@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 from depth.errors import DepthError
 from depth.measure import (
@@ -1023,3 +1024,25 @@ def test_reconstruct_tells_an_empty_mirror_only_from_the_mirror_region(rig):
     ys, xs = np.nonzero(mask)
     img[ys[len(ys) // 2], xs[len(ys) // 2], 2] = 0.6  # the blue channel only
     assert reconstruct(img, rig.camera, rig.mirror).cubes == []
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.floats(0.002, 0.5))
+def test_nearest_pixel_of_a_mask_is_at_the_euclidean_distance(seed, density):
+    """`_nearest` reads OpenCV's labelled distance transform, whose labels number the mask's pixels in
+    raster order: the pixel it names is in the mask and lies at the nearest distance scipy's exact
+    Euclidean transform gives, to within the 5 × 5 chamfer mask's approximation (under 3 % of the
+    distance on 200 random masks; 4 % allowed here)."""
+    from scipy import ndimage
+
+    from depth.measure import _nearest
+    rng = np.random.default_rng(seed)
+    mask = rng.random((37, 53)) < density
+    mask[rng.integers(37), rng.integers(53)] = True
+    where = ~mask
+    idx = _nearest(mask, where)
+    assert mask.ravel()[idx].all()
+    rows, cols = np.nonzero(where)
+    got = np.hypot(idx // 53 - rows, idx % 53 - cols)
+    exact = ndimage.distance_transform_edt(~mask)[where]
+    assert np.all(got <= exact * 1.04 + 1e-9)
