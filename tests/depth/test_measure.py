@@ -12,7 +12,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from depth.errors import DepthError
 from depth.measure import (
@@ -956,7 +957,12 @@ def test_blur_domain_is_checked():
 
 def test_blur_domain_evidence_tells_where_the_blur_acted():
     from scipy import ndimage
-    from depth.measure import BLUR_EVIDENCE_MARGIN, blur_domain_evidence, blur_domain_verdict
+
+    from depth.measure import (
+        BLUR_EVIDENCE_MARGIN,
+        blur_domain_evidence,
+        blur_domain_verdict,
+    )
     cubes = [FakeCube(c.tl, c.tr, c.br, c.bl, c.top_sag, c.bottom_sag, albedo=c.albedo, side=None)
              for c in three_cubes()]
     image, _ = make_image((200, 240), cubes, background="grey")
@@ -1011,9 +1017,8 @@ def test_extended_to_blob_stops_at_gaps_in_the_blob():
 def test_reconstruct_tells_an_empty_mirror_only_from_the_mirror_region(rig):
     # Variation outside the mirror (the camera sees the room beside it) is no mirror content; one
     # pixel inside the mirror that differs is (it then finds no cube, rather than refusing the image).
-    from raytrace.truth import mirror_mask
-
     from depth.reconstruct import reconstruct
+    from raytrace.truth import mirror_mask
 
     mask = mirror_mask(rig.camera, rig.mirror)
     w, h = rig.camera.resolution
