@@ -266,8 +266,7 @@ def _uniform_background(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, m
     """(background pixels, seed pixels, None) where the mirror shows one background colour, else None.
 
     The background is the median colour of `rest`, kept only where at least `background_share` of
-    its pixels lie within its noise band (the largest channel difference up to `band` = max(0.02,
-    4 × its median over the pixels within 0.05 of the background, about 5.6 σ of Gaussian noise))
+    its pixels lie within its noise band (the largest channel difference up to `_noise_band`'s)
     and where the pixels outside it, in regions reaching the edge of the mirror region, are under
     `UNIFORM_RIM_SHARE` of `rest` (a sky shading across the mirror leaves whole bands outside it);
     seeds differ from it by over twice the band."""
@@ -278,28 +277,35 @@ def _uniform_background(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, m
     for k in (1, 2):
         np.maximum(dist, np.abs(rgb[..., k] - background[k]), out=dist)
     close = dist.ravel()[sample]
-    close = close[close <= 0.05]  # the background's own pixels, for its noise
-    if close.size * (n_rest / len(sample)) < min_area:
+    if np.count_nonzero(close <= 0.05) * (n_rest / len(sample)) < min_area:
         return None
-    band = max(0.02, 4.0 * float(np.median(close)))
+    band = _noise_band(close)
     near = dist <= band
     if np.mean(near[rest]) < background_share:
         return None
     other = rest & ~near
     limit = UNIFORM_RIM_SHARE * np.count_nonzero(rest)
-    if np.count_nonzero(other) > limit:
-        n_lab, labels = cv2.connectedComponents(other.astype(np.uint8), connectivity=8)
-        outer = np.zeros(n_lab, dtype=bool)
-        outer[np.unique(labels[_rim(search) & other])] = True
-        outer[0] = False
-        if np.count_nonzero(outer[labels]) > limit:
-            return None
+    if np.count_nonzero(other) > limit and np.count_nonzero(_reaching_rim(other, search, 8)) > limit:
+        return None
     return near, dist > 2.0 * band, None
 
 
-def _rim(search: np.ndarray) -> np.ndarray:
-    """The pixels of `search` within 2 px of its edge."""
-    return search & ~cv2.erode(search.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+def _noise_band(dist: np.ndarray) -> float:
+    """A background's noise band from its pixels' colour distances `dist` to what they should be (the
+    largest channel difference): max(0.02, 4 × their median over those within 0.05, the background's
+    own pixels), about 5.6 σ of Gaussian noise."""
+    close = dist[dist <= 0.05]
+    return max(0.02, 4.0 * float(np.median(close))) if close.size else 0.02
+
+
+def _reaching_rim(mask: np.ndarray, search: np.ndarray, connectivity: int) -> np.ndarray:
+    """The pixels of the connected regions of `mask` that reach within 2 px of the edge of `search`."""
+    n_lab, labels = cv2.connectedComponents(mask.astype(np.uint8), connectivity=connectivity)
+    rim = search & ~cv2.erode(search.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    reach = np.zeros(n_lab, dtype=bool)
+    reach[np.unique(labels[rim & mask])] = True
+    reach[0] = False
+    return reach[labels]
 
 
 def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_share: float):
@@ -320,11 +326,7 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
     edges = cv2.Canny(dx, dy, weak, strong, L2gradient=True) > 0
     square = np.ones((3, 3), np.uint8)
     free = search & ~cv2.dilate((edges & search).astype(np.uint8), square).astype(bool)
-    n_lab, labels = cv2.connectedComponents(free.astype(np.uint8), connectivity=4)
-    outer = np.zeros(n_lab, dtype=bool)
-    outer[np.unique(labels[_rim(search) & free])] = True
-    outer[0] = False
-    near = outer[labels]
+    near = _reaching_rim(free, search, 4)
     if np.mean(near[rest]) < background_share:
         return None
     # The 3 px band of each edge beside an enclosed region: a pixel there is the region's where its
@@ -338,8 +340,7 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
     if inside.any():
         ref = cv2.blur(rgb, (3, 3)).reshape(-1, 3)
         sample = np.flatnonzero(background)[:: max(int(background.sum()) // 100_000, 1)]
-        noise = np.abs(rgb.reshape(-1, 3)[sample] - ref[sample]).max(axis=1)
-        level = max(0.02, 4.0 * float(np.median(noise[noise <= 0.05]))) if np.any(noise <= 0.05) else 0.02
+        level = _noise_band(np.abs(rgb.reshape(-1, 3)[sample] - ref[sample]).max(axis=1))
         band &= cv2.distanceTransform((~inside).astype(np.uint8), cv2.DIST_L2, 5) <= 3.0
         near[band] = np.abs(rgb[band] - ref[_nearest(background, band)]).max(axis=1) <= level
     return near, search & ~near, edges
