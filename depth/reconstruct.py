@@ -178,7 +178,7 @@ def _cube_vertices(est: CubeEstimate, up) -> np.ndarray:
     return Cube(est.size, est.center, np.column_stack([u, np.cross(n, u), n])).vertices()
 
 
-def _direct_view_reason(camera, mirror, est: CubeEstimate, mirror_region, blobs, up) -> str | None:
+def _direct_view_reason(camera, mirror, est: CubeEstimate, mirror_region, blobs, up, own=None) -> str | None:
     """Why a cube is not where the estimate puts it, because the camera would see it there, or None.
 
     The image is of reflections: a cube standing between the camera and the mirror would hide part of
@@ -187,7 +187,11 @@ def _direct_view_reason(camera, mirror, est: CubeEstimate, mirror_region, blobs,
     along its ray) and under `DIRECT_VIEW_SEEN` of the pixels it would hide belong to any detected blob,
     the face was no cube's reflection: the shadows of cubes on a floor, quadrilaterals fitting a square
     face as well as a grey cube's (edge misfit 0.15–0.30 px), are put 1.2–1.4 mirror radii from the
-    axis, right in front of the mirror (lighting bench, floor2 case)."""
+    axis, right in front of the mirror (lighting bench, floor2 case). Where a blob does show there but it
+    is the face's own (`own`, its blob mask), over `DIRECT_VIEW_IN_MIRROR` of it covered by the cube's
+    direct image, the cube would hide the very reflection that was measured: the blob is a cube seen
+    straight, standing over the mirror, not a reflection (one 4 cm across 0.3 m from the axis was read
+    as the reflection of one 8 mm across at the mirror's surface)."""
     px, z_cam = camera.project(_cube_vertices(est, up))
     if np.any(z_cam <= 0):
         return None
@@ -206,11 +210,14 @@ def _direct_view_reason(camera, mirror, est: CubeEstimate, mirror_region, blobs,
     t, hit, _, _ = mirror.intersect(camera.position[None], offset[None] / distance)
     if not hit[0] or distance >= t[0]:
         return None
+    centre_px, _ = camera.project(est.center[None])
+    u, v = centre_px[0]
+    if own is not None and (hull & own).sum() > DIRECT_VIEW_IN_MIRROR * max(int(own.sum()), 1):
+        return (f"it would stand between the camera and the mirror around ({u:.0f}, {v:.0f}) px and hide its own "
+                f"reflection there: a cube seen directly, not reflected")
     seen = float((hidden & blobs).sum()) / float(hidden.sum())
     if seen >= DIRECT_VIEW_SEEN:
         return None
-    centre_px, _ = camera.project(est.center[None])
-    u, v = centre_px[0]
     return (f"it would stand between the camera and the mirror, hiding the mirror around ({u:.0f}, {v:.0f}) px, "
             f"where no such object shows (a shadow?)")
 
@@ -348,7 +355,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         if k in achromatic and (shadow := _shadow_reason(rays, meas, est, cube_size, up)):
             refused.append(Refusal(bbox, shadow))
             continue
-        if direct := _direct_view_reason(camera, mirror, est, mask, blobs, up):
+        if direct := _direct_view_reason(camera, mirror, est, mask, blobs, up, own=meas.blob_mask):
             refused.append(Refusal(bbox, f"{est.method}: {direct}"))
             continue
         depth = float(mirror.distance_to_axis(est.center[None])[0])

@@ -67,6 +67,27 @@ def test_a_cube_between_the_camera_and_the_mirror_that_shows_there_is_kept(setup
     assert _direct_view_reason(camera, mirror, est, region, blobs, mirror.axis) is None
 
 
+def test_a_cube_whose_direct_image_covers_its_own_measured_face_is_refused(setup):
+    """The blob over the cube's direct image is the very face measured as its reflection: the camera
+    would see the cube there and not its reflection behind it, so the face is a cube seen straight over
+    the mirror. Refused, and the reason says so; the same cube with its face measured elsewhere (another
+    blob covering the direct image) is kept."""
+    camera, mirror, region = setup
+    o, d = camera.rays(np.array([[400.0, 300.0]]))
+    t, _, _, _ = mirror.intersect(o, d)
+    est = _cube_at(o[0] + 0.5 * t[0] * d[0])
+    px, _ = camera.project(_cube_vertices(est, mirror.axis))
+    (u0, v0), (u1, v1) = np.floor(px.min(axis=0)).astype(int), np.ceil(px.max(axis=0)).astype(int)
+    own = np.zeros_like(region)
+    own[v0:v1 + 1, u0:u1 + 1] = True
+    reason = _direct_view_reason(camera, mirror, est, region, own, mirror.axis, own=own)
+    assert reason is not None and "hide its own reflection" in reason
+    elsewhere = np.zeros_like(region)
+    elsewhere[100:130, 300:310] = True
+    assert region[100:130, 300:310].all()
+    assert _direct_view_reason(camera, mirror, est, region, own | elsewhere, mirror.axis, own=elsewhere) is None
+
+
 @pytest.mark.parametrize("centre", [
     (0.0, 0.0, 0.8),     # behind the camera
     (0.3, 0.0, 0.3),     # beside the mirror, out of the camera's view (the usual place of a cube)
