@@ -363,8 +363,9 @@ def _achromatic_regions(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarra
     reach the mirror's edge (`_enclosed`). Regions of lines under 5 px wide are dropped and taken for
     background. A region is an object only where the ring of pixels 1–2 px around it is background
     (at least `ring_share` of it): a cell of a checkered ground borders other cells. An enclosed
-    region is also one only where the pixels 3–8 px around it are under `ENCLOSING_CLUTTER` edges. Regions within 3 px of a coloured blob are left out: there
-    they are a coloured cube's dark or washed-out face, not another object.
+    region is also one only where the pixels 3–8 px around it are under `ENCLOSING_CLUTTER` edges.
+    Regions within 3 px of a coloured blob are left out: there they are a coloured cube's dark or
+    washed-out face, not another object.
     """
     rest = search & ~coloured
     if int(rest.sum()) < min_area:
@@ -401,7 +402,8 @@ def _achromatic_regions(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarra
         if edges is not None:  # enclosed: in a smooth background, not among a texture's edges
             sl = (slice(max(y - 8, 0), y + h + 8), slice(max(x - 8, 0), x + w + 8))
             comp = (labels[sl] == lab).astype(np.uint8)
-            around = (cv2.dilate(comp, np.ones((17, 17), np.uint8)) > cv2.dilate(comp, np.ones((7, 7), np.uint8))) & search[sl]
+            outer, inner = (cv2.dilate(comp, np.ones((n, n), np.uint8)) for n in (17, 7))
+            around = (outer > inner) & search[sl]
             if np.mean(edges[sl][around]) > ENCLOSING_CLUTTER:
                 continue
         regions.append((labels[y : y + h, x : x + w] == lab, (y, x)))
