@@ -691,23 +691,50 @@ def test_a_one_pixel_strip_beside_a_side_on_the_pixel_grid_gets_a_second_reading
 
 
 @pytest.mark.parametrize("side_width", [1.0, 0.6])
-def test_an_off_colour_pixel_read_as_mixed_gets_the_strip_as_its_second_reading(side_width):
+def test_an_off_colour_pixel_beside_a_side_on_the_pixel_grid_has_the_strip_as_one_reading(side_width):
     """A bright side face beside a left side on a pixel boundary, against grey: every row samples
-    one phase, and the fit of one sample per pixel reads the off-colour column as a pixel mixing
-    face and outside (the edge put out into it by its brightness). Its other reading is a strip
-    filling that column, the face's edge at the column's inner boundary, which here is the truth."""
+    one phase, and one sample per pixel cannot tell a strip filling the off-colour column from a pixel
+    mixing face, a narrower strip and the outside. One reading is the strip filling that column, the
+    face's edge at the column's inner boundary, which here is the truth; the other reads a mixed pixel.
+    Brighter than the face, the column counts as face there, not as more: that edge lies inside the
+    column, not beyond the pixels the cube covers (the strip's area, 0.95 / 0.7 of the face's, put it
+    1.36 px out)."""
     c = FakeCube((60.5, 30.6), (69.8, 30.6), (69.8, 110.4), (60.5, 110.4), side="left", side_width=side_width,
                  side_shade=0.95, albedo=(0.62, 0.62, 0.25), front_shade=0.7)
     image, mirror = make_image((140, 130), [c], background="grey")
     (d,) = match(detect_cubes(image, mirror), [c])
     o = face_outline(image, d.front_face_mask)
     assert o, getattr(o, "reason", "")
-    assert o.strip_px[0] == 0.0
-    assert np.all(c.corners()[[0, 3], 0] - o.corners_px[[0, 3], 0] > 0.5)  # read as mixed: out by > 0.5 px
-    alt = o.alternative
-    assert alt is not None and alt.strip_px[0] == pytest.approx(1.0, abs=0.1)
-    assert np.abs(alt.corners_px[[0, 3], 0] - c.corners()[[0, 3], 0]).max() <= 0.1
-    np.testing.assert_allclose(alt.corners_px[[1, 2]], o.corners_px[[1, 2]], atol=1e-9)
+    assert o.alternative is not None
+    readings = [o, o.alternative]
+    strip = [r for r in readings if r.strip_px[0] > 0]
+    mixed = [r for r in readings if r.strip_px[0] == 0.0]
+    assert len(strip) == 1 and len(mixed) == 1
+    assert strip[0].strip_px[0] == pytest.approx(1.0, abs=0.1)
+    assert np.abs(strip[0].corners_px[[0, 3], 0] - c.corners()[[0, 3], 0]).max() <= 0.1
+    out = c.corners()[[0, 3], 0] - mixed[0].corners_px[[0, 3], 0]
+    assert np.all((out > 0.5) & (out <= 1.0 + 0.05))  # within the column: its outer boundary is 1 px out
+    np.testing.assert_allclose(o.alternative.corners_px[[1, 2]], o.corners_px[[1, 2]], atol=1e-9)
+
+
+@pytest.mark.parametrize("ratio", [1.36, 2.25])
+@pytest.mark.parametrize("start", [9.5, 10.0, 10.5])
+def test_a_column_brighter_than_the_face_beside_a_side_on_the_pixel_grid_counts_as_face(ratio, start):
+    """Linear colours, pixel centres at integers: a red face up to column 9, column 10 the face's colour
+    times `ratio` (a side face lit brighter, filling that pixel), grey beyond. Every edge point of a
+    vertical side is placed at the column's outer boundary, u = 10.5, from wherever its profile starts:
+    the column counts as face, not as `ratio` times as much (which put the edge up to 0.9 px beyond
+    every pixel the cube covers and made the refinement step out of the blob)."""
+    from depth.measure import _edge_offsets
+
+    face = np.array([0.56, 0.056, 0.056])
+    img = np.full((40, 30, 3), 0.35)
+    img[:, :10] = face
+    img[:, 10] = face * ratio
+    points = np.column_stack([np.full(20, start), np.arange(10.0, 30.0)])
+    e, contrast = _edge_offsets(img, points, np.tile([1.0, 0.0], (20, 1)), 1.5, 0.02)
+    assert np.all(contrast > 0.02)
+    np.testing.assert_allclose(start + e, 10.5, atol=1e-6)
 
 
 # ------------------------------------------------------------------------------ JPEG: luma
