@@ -748,7 +748,11 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         for side in range(6):
             g = je[sid == side].sum(axis=0)
             meat += bias2 * np.outer(g, g)
-        return jtj_inv @ meat @ jtj_inv
+        cov = jtj_inv @ meat @ jtj_inv
+        # how much the side offsets widen the turn's variance over the point scatter's (the first
+        # parameter is the turn): the scale at which costs along the turn profile are read
+        naive = sigma2 * jtj_inv[0, 0]
+        return cov, {"sigma2": sigma2, "inflation": float(max(cov[0, 0] / naive, 1.0)) if naive > 0 else 1.0}
 
     # The front face is the cube face nearest to facing the mirror: within 54.7° of it.
     lim = np.deg2rad(54.7)
@@ -819,6 +823,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         keep = weight
         fitted = (x_best, pixel_weights(x_best))
         best, gain = None, 1.0
+        profile_log.clear()
         for direction in (-1.0, 1.0):
             x, w = fitted
             prev = 1.0
@@ -830,6 +835,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
 
                 x = np.r_[t, 0.0, 0.0, fit_lsq(x[3:7], placed, np.r_[t, np.zeros(6)], **dict(opts, max_nfev=PLACE_NFEV)).x]
                 w = pixel_weights(x)
+                profile_log.append((x, w))
                 c, c0 = costs([(x, w), fitted])
                 ratio = c / max(c0, 1e-12)
                 if ratio < gain:
@@ -869,7 +875,8 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             stage1 = profiled(x_best) or stage1
             x_best, sol1 = stage1
         cov = np.zeros((7, 7))
-        cov[np.ix_(upright, upright)] = covariance(sol1.jac, sol1.fun, 5)
+        cov[np.ix_(upright, upright)], scales = covariance(sol1.jac, sol1.fun, 5)
+        log = list(profile_log) if len(merged) > 1 else []
         # Stage 2, any orientation, only when the upright face does not explain the edges (rms above
         # UPRIGHT_MISFIT_PX, many times the sub-pixel edge scatter), kept only when it halves the misfit:
         # a free tilt fitted to noise slides along a valley of tilt against depth.
@@ -880,11 +887,12 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             starts = [np.r_[origin[:2], roll, origin[3:]] for origin in (x_best, np.zeros(7)) for roll in rolls]
             stage2 = refined(True, starts)
             if stage2 is not None and _rms(stage2[1].fun) < 0.5 * rms1:
-                x_best, cov = stage2[0], covariance(stage2[1].jac, stage2[1].fun, 7)
+                (x_best, (cov, scales)), log = (stage2[0], covariance(stage2[1].jac, stage2[1].fun, 7)), []
             else:
                 weight = weight_upright
-        return x_best, cov
+        return x_best, cov, log, scales
 
+    profile_log = []  # (pose, pixel scales) of the turn profile's poses (`profiled`)
     weight_start = weight
     result = fit()
     if result is not None and tb_candidates:
@@ -928,7 +936,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
                 pairs, pair_axis, pair_sign = face_pairs(merged)
     if result is None:
         return FailedEstimate("exact", "least squares did not converge from any starting turn")
-    x_best, cov = result
+    x_best, cov, log, scales = result
     rot, c, s = unpack(x_best)
     if not (np.all(np.isfinite(x_best)) and np.all(np.isfinite(c)) and np.isfinite(s) and s > 0):
         return FailedEstimate("exact", "least squares diverged")
@@ -953,6 +961,19 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     cov_d = jac_d @ cov @ jac_d.T
     sd = np.sqrt(np.maximum(np.diag(cov_d), 0.0))
     std = {"z": float(sd[4]), "size": float(sd[3]), "center": float(np.sqrt(np.sum(sd[:3] ** 2)))}
+    if log:
+        # With merged faces the cost along the turn is flat, and kinks where a face comes into view
+        # can pin the fit: the first-order σ, from the slopes at one pose, then says little about how
+        # far the turn could be. The profiled poses are weighted by their likelihood, their costs read
+        # at the point scatter widened as the side offsets widen the turn (`covariance`), and each
+        # σ is at least their spread about the estimate (small faces: 7 of 24 beyond 3 σ, up to 10.5).
+        poses = log + [(x_best, pixel_weights(x_best))]
+        cost = np.array(costs(poses))
+        lik = np.exp(-(cost - cost.min()) / (scales["sigma2"] * scales["inflation"]))
+        spread = np.array([derived(x) for x, _ in poses]) - f0
+        var = lik @ spread ** 2 / lik.sum()
+        std = {"z": max(std["z"], float(np.sqrt(var[4]))), "size": max(std["size"], float(np.sqrt(var[3]))),
+               "center": max(std["center"], float(np.sqrt(np.sum(var[:3]))))}
     return CubeEstimate(method="exact", center=f0[:3], size=float(s), z=float(f0[4]), front_face_center=c,
                         normal=normal, aspect_ratio=start.aspect_ratio, std=std,
                         xslit=start.xslit, rms_residual=rms)
