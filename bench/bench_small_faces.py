@@ -10,7 +10,9 @@ the axis of a 0.1 m mirror, at 640×480 (f = 1400 px: faces about 10 px wide) an
 Per resolution: the centre error ‖ĉ − c‖ / (distance of c to the axis) of `exact`, its median and max,
 how many cubes lie beyond 3 reported σ in depth, and the edge misfit. The reconstruct bench's lowest
 resolution is 1024×768; this sweep shows what happens below it (seventeenth session: the fits are good,
-misfit ≤ 0.13 px, and the turn is wrong, the first-order σ not covering it).
+misfit ≤ 0.13 px, and the turn is wrong, the first-order σ not covering it; eighteenth session: a side
+face lit brighter than the front face within a pixel of a side along the pixel grid no longer puts that
+side outside the cube, and the σ of a face with merged faces covers the spread of its turn profile).
 """
 
 from __future__ import annotations
