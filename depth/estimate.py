@@ -887,7 +887,8 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             starts = [np.r_[origin[:2], roll, origin[3:]] for origin in (x_best, np.zeros(7)) for roll in rolls]
             stage2 = refined(True, starts)
             if stage2 is not None and _rms(stage2[1].fun) < 0.5 * rms1:
-                (x_best, (cov, scales)), log = (stage2[0], covariance(stage2[1].jac, stage2[1].fun, 7)), []
+                cov, scales = covariance(stage2[1].jac, stage2[1].fun, 7)
+                x_best, log = stage2[0], []  # tilted: no turn profile of this pose
             else:
                 weight = weight_upright
         return x_best, cov, log, scales

@@ -1202,12 +1202,16 @@ def _chroma(colour: np.ndarray) -> np.ndarray:
     return colour - colour.mean(axis=-1, keepdims=True)
 
 
-def _profiles(img, points, normals, half_width, step):
-    """Bilinear samples of img along each point's normal at s = −L, −L + step, …, L: (N, K, C)."""
+def _profile_coords(points, normals, half_width, step):
+    """Image coordinates (u, v), each (N, K), of the samples along each point's normal at
+    s = −L, −L + step, …, L."""
     s = np.arange(-half_width, half_width + step / 2, step)
-    u = points[:, 0:1] + s[None, :] * normals[:, 0:1]
-    v = points[:, 1:2] + s[None, :] * normals[:, 1:2]
-    return _bilinear(img, u, v)
+    return points[:, 0:1] + s[None, :] * normals[:, 0:1], points[:, 1:2] + s[None, :] * normals[:, 1:2]
+
+
+def _profiles(img, points, normals, half_width, step):
+    """Bilinear samples of img along each point's normal (`_profile_coords`): (N, K, C)."""
+    return _bilinear(img, *_profile_coords(points, normals, half_width, step))
 
 
 def _along_side(levels: np.ndarray) -> np.ndarray:
@@ -1277,10 +1281,10 @@ from which a side is taken to sample the edge at one phase only (`_one_phase`)."
 
 def _one_phase(points, normals, e) -> bool:
     """Whether the side through the edge points (points + e·normals) of one side runs at about one
-    sub-pixel phase across it (along the pixel grid, within ±1/8 px): such a side cannot tell a strip within a
-    pixel from a mixed pixel, and a third colour there is clipped (`_OVERSHOOT`). A leaning side
-    samples every phase, and its strips are found by the edge-spread pass (clipped, each phase would
-    err differently: 0.1 px, a side's slope off)."""
+    sub-pixel phase across it (along the pixel grid, within ±1/8 px): such a side cannot tell a strip
+    within a pixel from a mixed pixel, and a third colour there is clipped (`_OVERSHOOT`). A leaning
+    side samples every phase, and its strips are found by the edge-spread pass (clipped, each phase
+    would err differently: 0.1 px, a side's slope off)."""
     across = int(np.median(np.abs(normals[:, 0])) < np.median(np.abs(normals[:, 1])))
     edges = points + e[:, None] * normals
     along, edge = edges[:, 1 - across], edges[:, across]
@@ -1312,9 +1316,8 @@ def _pixel_corners(img, points, normals, half_width, step):
     """The four pixels each `_profiles` sample blends, and their bilinear weights: (N, K, 4, C), (N, K, 4)
     (coordinates clamped to the image, as `_bilinear`'s "nearest" mode does)."""
     h, w = img.shape[:2]
-    s = np.arange(-half_width, half_width + step / 2, step)
-    u = np.clip(points[:, 0:1] + s[None, :] * normals[:, 0:1], 0.0, w - 1.0)
-    v = np.clip(points[:, 1:2] + s[None, :] * normals[:, 1:2], 0.0, h - 1.0)
+    u, v = _profile_coords(points, normals, half_width, step)
+    u, v = np.clip(u, 0.0, w - 1.0), np.clip(v, 0.0, h - 1.0)
     u0, v0 = np.floor(u).astype(int), np.floor(v).astype(int)
     u1, v1 = np.minimum(u0 + 1, w - 1), np.minimum(v0 + 1, h - 1)
     fu, fv = u - u0, v - v0
