@@ -1078,3 +1078,22 @@ def test_nearest_pixel_of_a_mask_is_at_the_euclidean_distance(seed, density):
     got = np.hypot(idx // 53 - rows, idx % 53 - cols)
     exact = ndimage.distance_transform_edt(~mask)[where]
     assert np.all(got <= exact * 1.04 + 1e-9)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(0.0, 1.0), st.floats(-1.0, 1.0), st.floats(20.0, 120.0), st.booleans(), st.booleans())
+def test_one_phase_tells_a_side_along_the_pixel_grid_from_a_leaning_one(phase, lean, length, vertical, noisy):
+    """A side whose edge keeps one sub-pixel phase along its length (its across-coordinate shifts by at
+    most 0.1 px end to end) is one-phase; one whose edge leans by 0.6 px or more over its length samples
+    every phase and is not, also where each point's edge is measured with 0.15 px of noise (read point by
+    point, such noise alone spreads the phases: resultant 0.64)."""
+    from depth.measure import _one_phase
+
+    along = np.arange(0.0, length, 1.0)
+    for shift, expected in ((0.1 * lean, True), ((0.6 + 0.4 * abs(lean)) * np.sign(lean or 1.0), False)):
+        edge = 40.0 + phase + shift * along / along[-1]
+        noise = np.random.default_rng(0).normal(0.0, 0.15, len(along)) if noisy else np.zeros(len(along))
+        start = edge - 0.7  # the profiles start 0.7 px inside; each measures its edge with noise
+        points = np.column_stack([start, along] if vertical else [along, start])
+        normals = np.tile([1.0, 0.0] if vertical else [0.0, 1.0], (len(along), 1))
+        assert _one_phase(points, normals, 0.7 + noise) is expected
