@@ -1267,7 +1267,7 @@ def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25):
             vals, wts = _pixel_corners(linear, points, normals, half_width, step)
             per = []
             for reduce, c_out, dn in affine:
-                per.append(np.einsum("nkjc,nc->nkj", reduce(vals[..., :3]) - c_out[:, None, None, :], dn))
+                per.append(np.einsum("nkjc,nc->nkj", reduce(vals) - c_out[:, None, None, :], dn))
             qp = np.where(use_chroma[:, None, None], per[0], per[1])
             q = np.sum(wts * np.clip(qp, lo, hi), axis=2)
             area = np.sum((q[:, 1:] + q[:, :-1]) * 0.5, axis=1) * step
