@@ -26,6 +26,7 @@ __all__ = [
     "FailedMeasurement",
     "detect_cubes",
     "face_outline",
+    "same_material_faces",
     "silhouette_sides",
     "silhouette",
     "Silhouette",
@@ -621,6 +622,61 @@ def detect_cubes(
         )
     detections.sort(key=lambda d: (d.bbox[0] + d.bbox[2], d.bbox[1] + d.bbox[3]))
     return detections
+
+
+SAME_MATERIAL_CHROMATICITY = 0.03
+"""Largest difference of linear-RGB chromaticity (r, g, b over their sum; Euclidean) between two faces of
+one blob for `same_material_faces` to take them for one material under the same light."""
+
+
+def same_material_faces(image: np.ndarray, detection: CubeDetection, min_contrast: float = 0.03) -> list[np.ndarray]:
+    """Regions of the detection's other faces that touch its front face and share its colour up to
+    brightness.
+
+    A cube's faces under white light, and the lit and the shadowed part of one face, have one
+    chromaticity (linear RGB over its sum) and differ only in brightness; the detection separates them
+    by brightness alone. Where the front face alone gives no square face (a cast shadow's curved edge
+    runs across it and cuts off its lit part), the union with such a region is the other reading.
+    Each other face mask is first split into its regions of one brightness (as `_split_by_brightness`
+    splits a blob: a face's lit part and a side face beside both parts touch, and are one mask).
+    Returned largest first; `min_contrast` as `detect_cubes`' `min_face_contrast`.
+
+    image : (H, W, 3) sRGB in [0, 1]; detection : a `CubeDetection` of that image.
+    """
+    front = detection.front_face_mask
+    if not front.any() or not detection.side_face_masks:
+        return []
+    x0, y0, x1, y1 = detection.bbox
+    x0, y0 = max(x0 - 1, 0), max(y0 - 1, 0)
+    win = (slice(y0, y1 + 1), slice(x0, x1 + 1))
+    rgb = np.asarray(image, dtype=np.float64)[win]
+    chroma, _, value = _chroma_hue_value(rgb)
+    linear = srgb_to_linear(rgb)
+    face = front[win]
+    near = cv2.dilate(face.astype(np.uint8), _CROSS).astype(bool)
+
+    def chromaticity(mask):
+        c = np.median(linear[mask], axis=0)
+        return c / max(float(c.sum()), 1e-6)
+
+    ref = chromaticity(face)
+    regions = []
+    for m in detection.side_face_masks:
+        m = m[win]
+        core, rest = _split_by_brightness(value, chroma, m, min_contrast)
+        # its regions of one brightness a tenth of it or more; each with the rest of the mask (the
+        # steps between it and the front face or the other regions, and slivers): the union with
+        # the front face then leaves no gap along a step
+        split = [r for r in [core & m] + list(rest) if r.sum() >= max(10, 0.1 * m.sum())]
+        regions.extend(m & ~np.any([o for o in split if o is not r], axis=0) if len(split) > 1 else m
+                       for r in split)
+    out = []
+    for r in sorted(regions, key=lambda r: -int(r.sum())):
+        if (r & near).any() and np.linalg.norm(chromaticity(r) - ref) <= SAME_MATERIAL_CHROMATICITY:
+            full = np.zeros_like(front)
+            full[win] = r
+            out.append(full)
+    return out
 
 
 def _split_faces(linear: np.ndarray, value: np.ndarray, chroma: np.ndarray, blob: np.ndarray,

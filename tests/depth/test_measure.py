@@ -23,6 +23,7 @@ from depth.measure import (
     FailedMeasurement,
     detect_cubes,
     face_outline,
+    same_material_faces,
     silhouette,
     silhouette_sides,
     srgb_to_linear,
@@ -367,6 +368,51 @@ def test_a_shadow_edge_down_the_front_face_is_refused_and_said_so():
     image, mirror = make_image((240, 200), [cube], background="grey", noise=2 / 255)
     (d,) = detect_cubes(image, mirror)
     assert not d.usable and "shadow" in d.reason and "touching cubes" in d.reason
+
+
+@pytest.mark.parametrize("shade", [0.45, 0.85])
+def test_a_face_cut_by_a_curved_shadow_edge_is_outlined_whole_with_its_part_of_the_same_colour(shade):
+    """A cast shadow whose edge arcs across the front face (a neighbour's shadow) splits it by brightness
+    into two parts of one colour: the detected front face is one part. `same_material_faces` gives the
+    other part, and the outline of their union is the face's (corners within 0.15 px), where that of
+    the front face alone follows the arc (its top corners tens of pixels off). A side face of another
+    colour (a sticker-like tint) is not offered."""
+    @dataclasses.dataclass
+    class ArcShadowed(FakeCube):
+        def paint(self, img, u, v):
+            super().paint(img, u, v)
+            arc = v > 120.0 + 0.05 * (u - 78.0) ** 2
+            img[self.face(u, v) & arc] = np.asarray(self.albedo) * self.front_shade * shade
+
+    cube = ArcShadowed((60.3, 50.2), (96.6, 50.9), (97.0, 210.0), (60.8, 209.5), side="right",
+                       side_shade=0.5, albedo=COLOURS["green"])
+    image, mirror = make_image((240, 200), [cube], background="grey", noise=2 / 255)
+    (d,) = detect_cubes(image, mirror)
+    assert d.usable, d.reason
+    alone = face_outline(image, d.front_face_mask)
+    assert not alone or np.abs(alone.corners_px - cube.corners()).max() > 5.0
+    parts = same_material_faces(image, d)
+    unions = [face_outline(image, d.front_face_mask | p) for p in parts]
+    best = min((np.abs(o.corners_px - cube.corners()).max() for o in unions if o), default=np.inf)
+    assert best < 0.15
+
+
+def test_a_touching_part_of_another_colour_is_no_part_of_the_face():
+    """`same_material_faces` offers only parts whose chromaticity is the front face's: a side face
+    painted in another hue of the same brightness class is left out."""
+    @dataclasses.dataclass
+    class Tinted(FakeCube):
+        def paint(self, img, u, v):
+            super().paint(img, u, v)
+            img[self.side_strip(u, v)] = np.array([0.3, 0.75, 0.1]) * self.side_shade
+
+    cube = Tinted((60.3, 50.2), (96.6, 50.9), (97.0, 210.0), (60.8, 209.5), side="right", side_width=8.0,
+                  side_shade=0.5, albedo=COLOURS["green"])
+    image, mirror = make_image((240, 200), [cube], background="grey", noise=2 / 255)
+    (d,) = detect_cubes(image, mirror)
+    strip = pixel_truth(image.shape[:2], cube, "strip")
+    assert any((m & strip).sum() > 0.5 * strip.sum() for m in d.side_face_masks)  # the tinted face is there
+    assert not any((m & strip).sum() > 0.5 * strip.sum() for m in same_material_faces(image, d))
 
 
 def test_blob_touching_the_mirror_edge_is_refused():
