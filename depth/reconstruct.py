@@ -251,7 +251,8 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         says what was used.
     """
     from raytrace.truth import mirror_mask, mirror_rays
-    from depth.measure import BLUR_DOMAINS, blur_domain_verdict, detect_cubes, extended_to_blob, face_outline
+    from depth.measure import (BLUR_DOMAINS, blur_domain_verdict, detect_cubes, extended_to_blob, face_outline,
+                               same_material_faces)
 
     if method not in ALL_METHODS:
         raise DepthError(f"method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
@@ -279,6 +280,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     cubes, refused, measured, blurred = [], [], [], []
     achromatic = set()  # indices into measured of the faces found without colour
     alternatives = {}  # index into measured: (blob mask, face pixels, channels) of a face with two readings
+    sources = []  # per measured face: (detection, face mask, channels)
     domain, any_blurred = blur_domain, False
     total = max(len(detections), 1)
     for i, det in enumerate(detections):
@@ -305,6 +307,14 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             face_mask = extended_to_blob(face_mask, det.mask, side)
             outline = face_outline(img, face_mask, thin_strips=thin_strips, channels=channels, blur_domain="linear")
         if not outline:
+            # a face cut in two by a cast shadow's edge: the union with its other part (`same_material_faces`)
+            for part in same_material_faces(img, det):
+                other = face_outline(img, face_mask | part, thin_strips=thin_strips, channels=channels,
+                                     blur_domain="linear")
+                if other:
+                    face_mask, outline = face_mask | part, other
+                    break
+        if not outline:
             refused.append(Refusal(bbox, f"face outline: {outline.reason}"))
             continue
         any_blurred = any_blurred or outline.blurred
@@ -316,6 +326,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             alternatives[len(measured)] = (det.mask, face_px, channels)
         if det.achromatic:
             achromatic.add(len(measured))
+        sources.append((det, face_mask, channels))
         measured.append((_measurement(img, det.mask, outline, face_px, channels, compressed), bbox, outline))
         if progress is not None:
             progress(i + 1, total)
@@ -348,15 +359,40 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             if alt:
                 estimates[k] = alt
                 measured[k] = (alt_meas, measured[k][1], alt_outline)
-    for k, (est, (meas, bbox, outline)) in enumerate(zip(estimates, measured)):
+
+    def verdict(k, est, meas) -> str | None:
+        """Why the estimate of face k is refused, or None."""
         if not est:
-            refused.append(Refusal(bbox, f"{est.method}: {est.reason}"))
-            continue
+            return f"{est.method}: {est.reason}"
         if k in achromatic and (shadow := _shadow_reason(rays, meas, est, cube_size, up)):
-            refused.append(Refusal(bbox, shadow))
-            continue
+            return shadow
         if direct := _direct_view_reason(camera, mirror, est, mask, blobs, up, own=meas.blob_mask):
-            refused.append(Refusal(bbox, f"{est.method}: {direct}"))
+            return f"{est.method}: {direct}"
+        return None
+
+    for k, (est, (meas, bbox, outline)) in enumerate(zip(estimates, measured)):
+        reason = verdict(k, est, meas)
+        if reason and method != "shape_prior":
+            # Where a cast shadow's curved edge cuts the face in two, the front face is only one part of
+            # it, which no square face explains (or only one the camera would see directly). Its union
+            # with a touching part of the same colour (`same_material_faces`) is the other reading; a
+            # merged side, top or bottom face in it is modelled by `exact` as such.
+            det, face_mask, channels = sources[k]
+            for part in same_material_faces(img, det):
+                union = face_mask | part
+                other = face_outline(img, union, thin_strips=thin_strips, channels=channels,
+                                     blur_domain="encoded" if domain == "encoded" else "linear")
+                if not other:
+                    continue
+                ys, xs = np.nonzero(union)
+                other_meas = _measurement(img, det.mask, other, np.column_stack([xs, ys]).astype(np.float64),
+                                          channels, compressed)
+                other_est = estimate_face(rays, other_meas, method=method, cube_size=cube_size, up=up)
+                if verdict(k, other_est, other_meas) is None:
+                    est, meas, outline, reason = other_est, other_meas, other, None
+                    break
+        if reason:
+            refused.append(Refusal(bbox, reason))
             continue
         depth = float(mirror.distance_to_axis(est.center[None])[0])
         cubes.append(CubeResult(estimate=est, depth=depth, depth_std=float(est.std.get("z", np.nan)),
