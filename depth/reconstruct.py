@@ -272,6 +272,15 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         r = mirror_rays(camera, mirror, px)
         return r.points, r.directions
 
+    def unions(det, face_mask, channels, blur):
+        """(union mask, its outline) of the face with each touching part of its blob of the same colour
+        (`same_material_faces`), largest first, where the union can be outlined."""
+        for part in same_material_faces(img, det):
+            outline = face_outline(img, face_mask | part, thin_strips=thin_strips, channels=channels,
+                                   blur_domain=blur)
+            if outline:
+                yield face_mask | part, outline
+
     detections = detect_cubes(despeckled(img) if compressed else img, mask)
     blobs = np.zeros(mask.shape, dtype=bool)  # every blob's pixels, refused ones too
     for det in detections:
@@ -308,12 +317,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             outline = face_outline(img, face_mask, thin_strips=thin_strips, channels=channels, blur_domain="linear")
         if not outline:
             # a face cut in two by a cast shadow's edge: the union with its other part (`same_material_faces`)
-            for part in same_material_faces(img, det):
-                other = face_outline(img, face_mask | part, thin_strips=thin_strips, channels=channels,
-                                     blur_domain="linear")
-                if other:
-                    face_mask, outline = face_mask | part, other
-                    break
+            face_mask, outline = next(unions(det, face_mask, channels, "linear"), (face_mask, outline))
         if not outline:
             refused.append(Refusal(bbox, f"face outline: {outline.reason}"))
             continue
@@ -378,12 +382,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             # with a touching part of the same colour (`same_material_faces`) is the other reading; a
             # merged side, top or bottom face in it is modelled by `exact` as such.
             det, face_mask, channels = sources[k]
-            for part in same_material_faces(img, det):
-                union = face_mask | part
-                other = face_outline(img, union, thin_strips=thin_strips, channels=channels,
-                                     blur_domain="encoded" if domain == "encoded" else "linear")
-                if not other:
-                    continue
+            for union, other in unions(det, face_mask, channels, "encoded" if domain == "encoded" else "linear"):
                 ys, xs = np.nonzero(union)
                 other_meas = _measurement(img, det.mask, other, np.column_stack([xs, ys]).astype(np.float64),
                                           channels, compressed)
