@@ -1,0 +1,86 @@
+"""Held-out renders: `python -m bench.holdout SEED [--grey]` (SEED 8080 or 9090 as in bench/README.md).
+
+Eight scenes no bench tunes on (`make_scenes(8, seed=SEED)`), rendered by Mitsuba 3 (16 spp) standing
+on a floor (albedo drawn per scene) under the lighting bench's sky map and a sun from a direction and
+of a strength drawn from `default_rng(SEED + 7)`; the odd scenes' cubes painted grey, white or black
+(`bench_lighting.greyed`), or every scene's with --grey. `exact` on each; per cube the centre error
+‖ĉ − c‖ / (distance of c to the axis) in %, the depth error in reported σ, the turn and the edge
+misfit, the refusals, then recall, false positives and the error median / 90th percentile / max.
+Not part of `make bench` (the first run renders for about 5 min on 2 cores; renders are cached in
+bench/out/renders/, and the results written to bench/out/holdout-SEED[-grey].json).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+
+
+def main(argv=None) -> int:
+    from bench import mitsuba_scenes as ms
+    from bench.bench_lighting import MATCH_PX, greyed, mitsuba_cached, sky_map
+    from bench.bench_reconstruct import OUT
+    from bench.scenes import make_scenes
+    from depth.reconstruct import reconstruct
+    from raytrace.truth import cube_truth
+
+    argv = sys.argv[1:] if argv is None else argv
+    args = [a for a in argv if not a.startswith("--")]
+    if len(args) != 1 or not args[0].isdigit():
+        print("usage: python -m bench.holdout SEED [--grey]   (SEED: a whole number, e.g. 8080 or 9090)",
+              file=sys.stderr)
+        return 2
+    seed, all_grey = int(args[0]), "--grey" in argv
+    if not ms.mitsuba_available():
+        print("bench.holdout: Mitsuba 3 is not installed (pip install -e '.[bench]'); skipped")
+        return 0
+    rng = np.random.default_rng(seed + 7)
+    res, fps = {}, []
+    for i, sc in enumerate(make_scenes(8, seed)):
+        travel = (float(rng.uniform(-1, 1)), float(-rng.uniform(0.3, 1.0)), float(rng.uniform(-1, 1)))
+        sun, albedo = float(rng.uniform(1.0, 3.0)), float(rng.uniform(0.2, 0.7))
+        grey = bool(i % 2 or all_grey)
+        setup = greyed(sc.setup) if grey else sc.setup
+        img = mitsuba_cached(setup, f"holdout{seed}-floor{albedo}-{travel}-{sun}", "holdout", travel, sun, 0.0,
+                             sky_map=sky_map(), floor_albedo=albedo)
+        cam, mir = setup.camera.build(), setup.mirror.build()
+        rec = reconstruct(img, cam, mir)
+        truth = [cube_truth(cam, mir, c.build()) for c in setup.objects]
+        px = np.array([np.mean(t["front_face_corners_px"], axis=0) for t in truth])
+        used = set()
+        for cube in rec.cubes:
+            dist = np.linalg.norm(px - np.mean(cube.corners_px, axis=0), axis=1)
+            j = int(np.argmin(dist))
+            if dist[j] > MATCH_PX or j in used:
+                fps.append({"scene": i, "at_px": np.round(np.mean(cube.corners_px, axis=0), 1).tolist()})
+                continue
+            used.add(j)
+            c = np.asarray(truth[j]["center"])
+            depth = float(mir.distance_to_axis(c[None])[0])
+            res[f"{i}/{j}"] = {"centre_err_pct": float(np.linalg.norm(cube.estimate.center - c) / depth * 100),
+                               "depth_sigmas": float((cube.depth - depth) / cube.depth_std),
+                               "turn_deg": float(sc.turn_deg[j]), "misfit_px": float(cube.estimate.rms_residual)}
+        for j in range(len(truth)):
+            res.setdefault(f"{i}/{j}", None)
+        cells = [f"{j}: " + ("missed" if res[f"{i}/{j}"] is None else
+                             f"{res[f'{i}/{j}']['centre_err_pct']:.2f} % ({res[f'{i}/{j}']['depth_sigmas']:+.1f} σ)")
+                 for j in range(len(truth))]
+        print(f"  s{i} {'grey ' if grey else 'colour'} " + ", ".join(cells), flush=True)
+        for r in rec.refused:
+            print(f"      refused {r.bbox}: {r.reason}")
+    e = np.array([v["centre_err_pct"] for v in res.values() if v])
+    z = np.abs([v["depth_sigmas"] for v in res.values() if v])
+    print(f"holdout {seed}{' (all grey)' if all_grey else ''}: found {len(e)} of {len(res)}, {len(fps)} false "
+          f"positives; centre error median {np.median(e):.2f} %, 90th pct {np.percentile(e, 90):.2f} %, max "
+          f"{e.max():.1f} %; depth within 1 / 2 / 3 σ {100 * np.mean(z <= 1):.0f} / {100 * np.mean(z <= 2):.0f} / "
+          f"{100 * np.mean(z <= 3):.0f} %")
+    OUT.mkdir(parents=True, exist_ok=True)
+    path = OUT / f"holdout-{seed}{'-grey' if all_grey else ''}.json"
+    path.write_text(json.dumps({"cubes": res, "false_positives": fps}, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
