@@ -108,6 +108,22 @@ def floor_render(setup, index: int, draw: int = 0) -> np.ndarray:
                           sky_map=sky_map(), floor_albedo=albedo)
 
 
+def match(cubes, truth: list) -> tuple[list, list]:
+    """Found cubes matched one to one to the true cubes, each to the nearest front-face centre within
+    `MATCH_PX` not yet taken: ([(cube, index of its true cube)], [cubes matching none: false positives])."""
+    px_true = np.array([np.mean(t["front_face_corners_px"], axis=0) for t in truth])
+    pairs, extra, used = [], [], set()
+    for cube in cubes:
+        dist = np.linalg.norm(px_true - np.mean(cube.corners_px, axis=0), axis=1)
+        j = int(np.argmin(dist))
+        if dist[j] > MATCH_PX or j in used:
+            extra.append(cube)
+            continue
+        used.add(j)
+        pairs.append((cube, j))
+    return pairs, extra
+
+
 def score(light: str, grey: bool = False) -> dict:
     """Reconstruct every scene under `light` (its cubes `greyed` when `grey`; lights "floor" and
     "floor2": the `floor_render` scenes under the suns of draw 0 and 1); per-cube errors and σ ratios."""
@@ -124,22 +140,16 @@ def score(light: str, grey: bool = False) -> dict:
         rec = reconstruct(img, cam, mir)
         domains.append(rec.blur_domain)
         truth = [cube_truth(cam, mir, c.build()) for c in sc.setup.objects]
-        px_true = np.array([np.mean(t["front_face_corners_px"], axis=0) for t in truth])
-        used = set()
-        for cube in rec.cubes:
-            dist = np.linalg.norm(px_true - np.mean(cube.corners_px, axis=0), axis=1)
-            j = int(np.argmin(dist))
-            if dist[j] > MATCH_PX or j in used:
-                fp += 1
-                continue
-            used.add(j)
+        pairs, extra = match(rec.cubes, truth)
+        fp += len(extra)
+        for cube, j in pairs:
             t, obj = truth[j], sc.setup.objects[j]
             c = np.asarray(t["center"])
             depth = float(mir.distance_to_axis(c[None])[0])
             centre.append(np.linalg.norm(cube.estimate.center - c) / depth)
             size.append(abs(cube.estimate.size - obj.size) / obj.size)
             zs.append(abs(cube.depth - depth) / cube.depth_std if cube.depth_std > 0 else np.inf)
-        found += len(used)
+        found += len(pairs)
         total += len(truth)
     return {"found": found, "total": total, "fp": fp, "centre": np.array(centre), "size": np.array(size),
             "z": np.array(zs), "encoded": domains.count("encoded"), "linear": domains.count("linear")}

@@ -20,7 +20,7 @@ import numpy as np
 
 def main(argv=None) -> int:
     from bench import mitsuba_scenes as ms
-    from bench.bench_lighting import MATCH_PX, greyed, mitsuba_cached, sky_map
+    from bench.bench_lighting import greyed, match, mitsuba_cached, sky_map
     from bench.bench_reconstruct import OUT
     from bench.scenes import make_scenes
     from depth.reconstruct import reconstruct
@@ -48,15 +48,9 @@ def main(argv=None) -> int:
         cam, mir = setup.camera.build(), setup.mirror.build()
         rec = reconstruct(img, cam, mir)
         truth = [cube_truth(cam, mir, c.build()) for c in setup.objects]
-        px = np.array([np.mean(t["front_face_corners_px"], axis=0) for t in truth])
-        used = set()
-        for cube in rec.cubes:
-            dist = np.linalg.norm(px - np.mean(cube.corners_px, axis=0), axis=1)
-            j = int(np.argmin(dist))
-            if dist[j] > MATCH_PX or j in used:
-                fps.append({"scene": i, "at_px": np.round(np.mean(cube.corners_px, axis=0), 1).tolist()})
-                continue
-            used.add(j)
+        pairs, extra = match(rec.cubes, truth)
+        fps += [{"scene": i, "at_px": np.round(np.mean(cube.corners_px, axis=0), 1).tolist()} for cube in extra]
+        for cube, j in pairs:
             c = np.asarray(truth[j]["center"])
             depth = float(mir.distance_to_axis(c[None])[0])
             res[f"{i}/{j}"] = {"centre_err_pct": float(np.linalg.norm(cube.estimate.center - c) / depth * 100),
