@@ -276,6 +276,8 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         """(union mask, its outline) of the face with each touching part of its blob of the same colour
         (`same_material_faces`), largest first, where the union can be outlined."""
         for part in same_material_faces(img, det):
+            if not (part & ~face_mask).any():  # already in the face (a union read at its outline)
+                continue
             outline = face_outline(img, face_mask | part, thin_strips=thin_strips, channels=channels,
                                    blur_domain=blur)
             if outline:
