@@ -971,6 +971,36 @@ def test_a_face_shows_a_strip_on_one_of_its_left_and_right_sides_only():
         assert abs(np.mean(pts[:, 0] - u_true)) < reach
 
 
+MITSUBA_WHITE = Path(__file__).resolve().parents[1] / "data" / "mitsuba_white_s3_0.png"
+"""A 52×138 crop of a Mitsuba 3 render (16 spp, Gaussian pixel filter; the holdout `python -m bench.holdout
+8080`, scene 3, cube 0): a white cube turned 7° on a grey floor under a sky and a sun, its front face 19 px
+wide, its left side face a strip 1.6 px wide brighter than the front face, its top face below the sky."""
+
+MITSUBA_WHITE_CORNERS = np.array([[36.059, 119.8544], [16.7958, 120.9607], [16.7927, 21.9364], [36.0576, 21.3266]])
+"""Its front face's corners (px, in the crop) from the exact reflection of the cube's edges (`cube_truth`)."""
+
+
+def test_a_strip_brighter_than_the_face_is_read_as_one_in_a_blurred_grey_image():
+    """The side face of a grey or white cube has the colour of its front face: it lies on the line
+    between the face's colour and the outside's, where the test for a distinct strip in a blurred image
+    (off that line, which no blur of the two reaches) saw nothing. But it lies beyond the segment
+    between them, brighter than the face, which is brighter than the outside: no blur (nor a pixel
+    mixing the two, on an upright side that samples one phase) makes such a value. The left side must
+    lie on the front face's edge (it was put at the strip's outer edge, 1.9 px out, and the cube came
+    out 21 % off)."""
+    image = _bench_crop(MITSUBA_WHITE)
+    dets = [d for d in detect_cubes(image, np.ones(image.shape[:2], dtype=bool)) if d.usable]
+    assert len(dets) == 1
+    o = face_outline(image, dets[0].front_face_mask, blur_domain="linear")
+    assert o, getattr(o, "reason", "")
+    assert o.blurred
+    assert o.strip_px[0] == pytest.approx(1.6, abs=0.4) and np.all(o.strip_px[1:] == 0.0), o.strip_px
+    br, bl, tl, tr = MITSUBA_WHITE_CORNERS
+    for pts, (p, q) in ((o.sides[0], (tl, bl)), (o.sides[1], (tr, br))):
+        u_true = p[0] + (pts[:, 1] - p[1]) * (q[0] - p[0]) / (q[1] - p[1])
+        assert abs(np.mean(pts[:, 0] - u_true)) < 0.25
+
+
 BLUR_S07_4 = Path(__file__).resolve().parents[1] / "data" / "blur_s07_4.png"
 """A 40×100 crop of the reconstruct bench's blur s07/4 image: one green cube, its front face 11.6 px
 wide, with a darker side face on its right and a bottom face below."""
