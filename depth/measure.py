@@ -1844,6 +1844,8 @@ def blur_domain_evidence(image: np.ndarray, outline: FaceOutline) -> tuple[float
     total, weight = 0.0, 0.0
     lum = np.array([0.2126, 0.7152, 0.0722])
     for i in range(4):
+        if outline.strip_px[i] > 0:  # a strip beside the side: two steps, which neither model is
+            continue
         u, v, d, _, _ = _side_band(outline.lines, outline.quadratics, outline.corners_px, i,
                                    image.shape[:2], 3.0, 3.0, 2.0)
         if len(d) < 40 or (d < -2.2).sum() < 10 or (d > 2.2).sum() < 10:
