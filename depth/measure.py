@@ -1153,11 +1153,14 @@ def _initial_model(mask: np.ndarray):
     normals = -g[ok] / norm[ok, None]
     points = contour[ok] + 0.5 * normals
     horizontal = np.abs(normals[:, 0]) >= np.abs(normals[:, 1])
+    # each side lies on its own side of the face's centre: a notch in the mask turns a few boundary
+    # points' normals (a bottom-facing step in the top side's row), which must not join the far side
+    uc, vc = contour.mean(axis=0)
     groups = [
-        horizontal & (normals[:, 0] < 0),
-        horizontal & (normals[:, 0] > 0),
-        ~horizontal & (normals[:, 1] < 0),
-        ~horizontal & (normals[:, 1] > 0),
+        horizontal & (normals[:, 0] < 0) & (points[:, 0] < uc),
+        horizontal & (normals[:, 0] > 0) & (points[:, 0] > uc),
+        ~horizontal & (normals[:, 1] < 0) & (points[:, 1] < vc),
+        ~horizontal & (normals[:, 1] > 0) & (points[:, 1] > vc),
     ]
     for name, grp in zip(SIDE_NAMES, groups):
         if grp.sum() < 3:
