@@ -1680,7 +1680,7 @@ def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast
     outside, and a fit of one sample per pixel cannot tell them apart (its two-step misfit ties
     across w ≲ 1 px). Read as a strip, the other reading is (0, 0): the side where the per-point
     estimate put it. `distinct`: the strip found stands out even in a blurred image
-    (`_ESF_BLURRED_STRIP_OFF_COLOUR`). `off`: how far the strip's colour lies off the line between
+    (`_ESF_BLURRED_STRIP_OFF_COLOUR`). `off`: how far the strip's colour lies from the segment between
     the face's and the outside's, as a fraction of face − outside (0 without a strip).
 
     Pixels in the band around the side are reduced to a face-ness f (projection of the colour on
@@ -1802,7 +1802,7 @@ def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast
     if accept and phases < 6:
         # one sample per pixel across the side: a mixed pixel and a strip of a colour between the
         # face's and the outside's look alike; believe a strip only when its colour is off that
-        # line and it fills at least a pixel
+        # line (or clearly beyond the segment, where no mixed pixel lies) and it fills at least a pixel
         off_colour = off >= 0.03 or beyond >= _ESF_BLURRED_STRIP_OFF_COLOUR
         accept = W[g2] >= 1.0 and off_colour
         if off_colour and not accept:  # an off-colour pixel read as mixed: a strip is the other reading
@@ -1941,8 +1941,8 @@ def _esf_pass(linear, model, min_contrast, margin=2.5, sides=range(4)):
     # planes of each pair are parallel, and a small face's rays come from nearly one viewpoint, beyond
     # at most one of them). Where both sides of a pair read as strips, one is something else: the
     # tail of a blur whose ramp the face's sides could not show (upright sides sample one phase of the
-    # edge) or a background's texture. Either lies near the line between the face's colour and the
-    # outside's, where a face, lit on its own, does not: the strip nearer that line is read as one step.
+    # edge) or a background's texture. Either lies near the segment between the face's colour and the
+    # outside's, where a face, lit on its own, does not: the strip nearer that segment is read as one step.
     read = {i: r for i, r in found.items() if r[5] or not blurred}
     strips = [i for i, r in read.items() if r[1] > 0]
     dropped = {min(pair, key=lambda k: read[k][6]) for pair in ((0, 1), (2, 3)) if all(k in strips for k in pair)}
