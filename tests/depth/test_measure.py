@@ -943,6 +943,12 @@ def _bench_crop(path):
     return cv2.cvtColor(cv2.imread(str(path)), cv2.COLOR_BGR2RGB).astype(np.float64) / 255.0
 
 
+def _mean_u_offset(pts, p, q):
+    """Mean signed u offset (px) of edge points `pts` (M, 2) from the true upright side through corners p, q."""
+    u_true = p[0] + (pts[:, 1] - p[1]) * (q[0] - p[0]) / (q[1] - p[1])
+    return float(np.mean(pts[:, 0] - u_true))
+
+
 BLUR_S15_2 = Path(__file__).resolve().parents[1] / "data" / "blur_s15_2.png"
 """A 32×72 crop of the reconstruct bench's blur s15/2 image (our 16-spp render, Gaussian blur σ = 0.7 px of
 the stored values): one cyan cube, its front face 5.1 px wide, a side face showing on its right."""
@@ -967,8 +973,7 @@ def test_a_face_shows_a_strip_on_one_of_its_left_and_right_sides_only():
     assert o.strip_px[0] == 0.0 and o.strip_px[1] > 0.0, o.strip_px
     br, bl, tl, tr = BLUR_S15_2_CORNERS
     for pts, (p, q), reach in ((o.sides[0], (tl, bl), 0.25), (o.sides[1], (tr, br), 0.5)):
-        u_true = p[0] + (pts[:, 1] - p[1]) * (q[0] - p[0]) / (q[1] - p[1])
-        assert abs(np.mean(pts[:, 0] - u_true)) < reach
+        assert abs(_mean_u_offset(pts, p, q)) < reach
 
 
 MITSUBA_WHITE = Path(__file__).resolve().parents[1] / "data" / "mitsuba_white_s3_0.png"
@@ -997,8 +1002,7 @@ def test_a_strip_brighter_than_the_face_is_read_as_one_in_a_blurred_grey_image()
     assert o.strip_px[0] == pytest.approx(1.6, abs=0.4) and np.all(o.strip_px[1:] == 0.0), o.strip_px
     br, bl, tl, tr = MITSUBA_WHITE_CORNERS
     for pts, (p, q) in ((o.sides[0], (tl, bl)), (o.sides[1], (tr, br))):
-        u_true = p[0] + (pts[:, 1] - p[1]) * (q[0] - p[0]) / (q[1] - p[1])
-        assert abs(np.mean(pts[:, 0] - u_true)) < 0.25
+        assert abs(_mean_u_offset(pts, p, q)) < 0.25
 
 
 BLUR_S07_4 = Path(__file__).resolve().parents[1] / "data" / "blur_s07_4.png"
@@ -1137,8 +1141,7 @@ def test_a_slit_in_the_face_mask_under_its_top_does_not_pull_the_bottom_side_up(
     br, bl, tl, tr = MITSUBA_GREEN_NOTCH_CORNERS
     assert np.linalg.norm(o.corners_px[2] - br) < 0.5 and np.linalg.norm(o.corners_px[3] - bl) < 0.5, o.corners_px
     for pts, (p, q) in ((o.sides[0], (tl, bl)), (o.sides[1], (tr, br))):
-        u_true = p[0] + (pts[:, 1] - p[1]) * (q[0] - p[0]) / (q[1] - p[1])
-        assert abs(np.mean(pts[:, 0] - u_true)) < 0.25
+        assert abs(_mean_u_offset(pts, p, q)) < 0.25
 
 
 def test_a_face_mask_cut_inside_a_uniform_face_is_grown_back_to_the_outline():
