@@ -93,6 +93,13 @@ class CylinderMirror:
         """Distance of points (N, 3) from the mirror axis, (N,)."""
         return np.linalg.norm(self.radial_vectors(np.atleast_2d(points)), axis=1)
 
+    def contains(self, points) -> np.ndarray:
+        """(N,) bool: which points (N, 3) lie strictly inside the solid the mirror bounds (nearer the
+        axis than `radius`, within `height` along it). Nothing there is seen by reflection off the
+        outer surface: a cube estimated there is no cube."""
+        p = np.atleast_2d(np.asarray(points, dtype=np.float64))
+        return (self.distance_to_axis(p) < self.radius) & (np.abs(self.axial(p)) < self.height / 2)
+
     @property
     def frame(self) -> np.ndarray:
         """(3, 3) float64 rows e1, e2, axis: an orthonormal frame with the axis last."""
@@ -275,6 +282,14 @@ class MeshMirror:
     def mesh(self, sections: int | None = None) -> trimesh.Trimesh:
         """The mirror's own mesh (`sections` is ignored)."""
         return self._mesh
+
+    def contains(self, points) -> np.ndarray:
+        """(N,) bool: which points (N, 3) lie inside the mesh (`trimesh.Trimesh.contains`); all False
+        for a mesh that bounds no volume (not watertight)."""
+        p = np.atleast_2d(np.asarray(points, dtype=np.float64))
+        if not self._mesh.is_watertight:
+            return np.zeros(len(p), dtype=bool)
+        return np.asarray(self._mesh.contains(p), dtype=bool)
 
     def _shade(self, o, d, prim):
         """Exact float64 hit on triangles `prim` (N,) of rays o, d; returns t, points, normals."""

@@ -168,3 +168,27 @@ def test_registry_and_validation():
         CylinderMirror(-0.1, 0.3)
     with pytest.raises(RaytraceError, match="mesh: expected a trimesh.Trimesh"):
         MeshMirror("not a mesh")
+
+
+@settings(max_examples=60, deadline=None)
+@given(rho=st.floats(0.0, 0.3), phi=st.floats(0.0, 2 * np.pi), h=st.floats(-0.3, 0.3))
+def test_cylinder_contains_points_within_its_radius_and_height(rho, phi, h):
+    """A point put at radius rho, angle phi and height h in the tilted cylinder's own frame (built here
+    from the axis and any vector across it, not from `frame`) is inside exactly when rho < radius and
+    |h| < height / 2."""
+    m = _tilted_cylinder()
+    across = np.cross(m.axis, [0.0, 0.0, 1.0])
+    e1 = across / np.linalg.norm(across)
+    e2 = np.cross(m.axis, e1)
+    p = m.center + rho * (np.cos(phi) * e1 + np.sin(phi) * e2) + h * m.axis
+    if min(abs(rho - m.radius), abs(abs(h) - m.height / 2)) < 1e-9:
+        return  # on the surface or a rim, to rounding
+    assert m.contains(p)[0] == (rho < m.radius and abs(h) < m.height / 2)
+
+
+def test_a_watertight_mesh_mirror_contains_its_inside_and_an_open_one_nothing():
+    box = MeshMirror(trimesh.creation.box((0.2, 0.2, 0.2)))
+    pts = np.array([[0.0, 0.0, 0.0], [0.09, -0.05, 0.02], [0.11, 0.0, 0.0], [0.0, 0.3, 0.0]])
+    assert box.contains(pts).tolist() == [True, True, False, False]
+    open_mesh = MeshMirror(trimesh.Trimesh(box.mesh().vertices, box.mesh().faces[:-2], process=False))
+    assert not open_mesh.contains(pts).any()
