@@ -1234,3 +1234,41 @@ def test_one_phase_tells_a_side_along_the_pixel_grid_from_a_leaning_one(phase, l
         points = np.column_stack([start, along] if vertical else [along, start])
         normals = np.tile([1.0, 0.0] if vertical else [0.0, 1.0], (len(along), 1))
         assert _one_phase(points, normals, 0.7 + noise) is expected
+
+
+MITSUBA_BLACK_MERGED = Path(__file__).resolve().parents[1] / "data" / "mitsuba_black_merged.png"
+"""A 60×130 crop of a Mitsuba 3 render (`python -m bench.holdout 7070`, scene 3, cube 2): a black cube turned
+18.6° on a pale floor, its left side face (4 px) as dark as its front face (12 px) and merged with it; with
+``mitsuba_black_merged_mask.png`` and ``_face.png``, the blob and front-face masks the detection gave in the
+whole image. Mitsuba's Gaussian pixel filter darkens the floor pixel beside the cube's left edge (200 of
+207), and the blob takes it in."""
+
+MITSUBA_BLACK_MERGED_LEFT_EDGE = np.array([[20.7157, 20.4303], [20.6672, 113.4084]])
+"""The image (px, in the crop) of the cube's back left vertical edge, its silhouette there (`reflection_pixels`
+of the cube's vertices)."""
+
+
+def test_the_silhouette_beside_a_blob_pixel_past_the_edge_is_located_on_the_edge():
+    """The blob's boundary starts the silhouette's profile a pixel out, and its window (±1.5 px) missed
+    the cube's dark level: the area put the silhouette 0.54 px outside the cube's edge and read a
+    0.65 px side face beside the merged outline, so `exact` took its left side for the front face's.
+    Re-centred on the edge found, the silhouette lies on the cube's edge, and the gap says no distinct
+    side face shows there."""
+    import cv2
+
+    from depth.estimate import NO_SIDE_FACE_GAP_PX_SHARP
+    from depth.measure import silhouette
+    image = _bench_crop(MITSUBA_BLACK_MERGED)
+    blob, face = (cv2.imread(str(MITSUBA_BLACK_MERGED.with_name(f"mitsuba_black_merged_{k}.png")),
+                             cv2.IMREAD_GRAYSCALE) > 127 for k in ("mask", "face"))
+    assert image[60, 20].mean() < image[60, 10].mean() - 5 / 255  # the darkened pixel
+    assert blob[60, 20] and not blob[60, 19]  # taken into the blob
+    o = face_outline(image, face)
+    assert o, getattr(o, "reason", "")
+    sil = silhouette(image, blob, o)
+    a, b = o.lines[0]
+    v = np.mean([p[1] for p in o.corners_px])
+    (p, q) = MITSUBA_BLACK_MERGED_LEFT_EDGE
+    u_true = p[0] + (v - p[1]) * (q[0] - p[0]) / (q[1] - p[1])
+    assert abs((a * v + b - sil.gaps_px[0]) - u_true) < 0.2
+    assert sil.gaps_px[0] < NO_SIDE_FACE_GAP_PX_SHARP
