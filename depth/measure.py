@@ -2076,12 +2076,6 @@ def _blob_boundary(image, blob_mask, lines, axis, sign, half_width, min_contrast
     x1, y1 = np.minimum(np.floor(start.max(axis=0) + lo + 1).astype(int), (w, h))
     linear = _edge_image(image[y0:y1, x0:x1], channels)
     e, contrast = _edge_offsets(linear, start - [x0, y0], normal, half_width, min_contrast)
-    # The window re-centred on the edge found: where the blob reaches a pixel beyond the edge (a
-    # pixel filter's tail, a penumbra), the window about its boundary misses the inner level, and the
-    # area puts the edge outward (0.55 px beside a black cube of an unseen Mitsuba render)
-    first = (contrast >= min_contrast) & (np.abs(e) <= half_width - 0.5)
-    start, normal = start[first] + e[first, None] * normal[first], normal[first]
-    e, contrast = _edge_offsets(linear, start - [x0, y0], normal, half_width, min_contrast)
     good = (contrast >= min_contrast) & (np.abs(e) <= half_width - 0.5)
     return start[good] + e[good, None] * normal[good]
 
