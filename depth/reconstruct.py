@@ -171,7 +171,7 @@ def _inside_mirror_reason(mirror, est: CubeEstimate) -> str | None:
     if contains is None or not contains(est.center[None])[0]:
         return None
     where = ""
-    if hasattr(mirror, "distance_to_axis") and hasattr(mirror, "radius"):
+    if hasattr(mirror, "radius"):  # (`distance_to_axis` every mirror here has: the result's depth uses it)
         r = float(mirror.distance_to_axis(est.center[None])[0])
         where = f", {r * 1e3:.1f} mm from the axis of a mirror of radius {mirror.radius * 1e3:.1f} mm"
     return f"its centre would lie inside the mirror{where}, where no reflection reaches"
