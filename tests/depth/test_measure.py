@@ -1274,3 +1274,52 @@ def test_the_silhouette_beside_a_blob_pixel_past_the_edge_is_located_on_the_edge
     u_true = p[0] + (v - p[1]) * (q[0] - p[0]) / (q[1] - p[1])
     assert abs((a * v + b - sil.gaps_px[0]) - u_true) < 0.2
     assert sil.gaps_px[0] < NO_SIDE_FACE_GAP_PX_SHARP
+
+
+JPEG_RINGING = Path(__file__).resolve().parents[1] / "data" / "jpeg_s15_ringing.png"
+"""An 85×210 crop of the reconstruct bench's JPEG s15 (quality 90, our renderer), cube 4: a blue face 29 px
+wide, turned 6°, with a 3 px darker side face on its right. JPEG ringing raises the blue a little over
+three columns 6.5 px inside the face's right edge, along a block boundary, and falls back beside the side
+face: a line of horizontal gradient with the same level on both sides of it."""
+
+JPEG_RINGING_CORNERS = np.array([[24.241, 30.217], [53.046, 32.444], [53.03, 192.773], [24.218, 189.078]])
+"""The front face's corners in the crop (`raytrace.truth.cube_truth`), [TL, TR, BR, BL]."""
+
+
+def test_a_gradient_line_between_equal_levels_does_not_cut_the_front_face():
+    """The ringing's rising edge was taken for a face boundary: the front face ended there, 6.7 px short of
+    its right edge, and the cube came out 33 % off in depth. Its two sides have one level, so it is no
+    step between faces: the front face reaches its own right edge and is outlined there."""
+    from depth.reconstruct import despeckled
+    image = _bench_crop(JPEG_RINGING)
+    (d,) = detect_cubes(despeckled(image), np.ones(image.shape[:2], dtype=bool))  # as reconstruct does for JPEG
+    assert d.usable
+    rows = np.arange(40, 180)
+    right = np.array([np.flatnonzero(d.front_face_mask[r])[-1] for r in rows])
+    edge = JPEG_RINGING_CORNERS[1, 0] + (rows - JPEG_RINGING_CORNERS[1, 1]) * (
+        (JPEG_RINGING_CORNERS[2, 0] - JPEG_RINGING_CORNERS[1, 0]) / (JPEG_RINGING_CORNERS[2, 1] - JPEG_RINGING_CORNERS[1, 1]))
+    assert np.all(right >= np.floor(edge) - 2) and np.all(right <= np.ceil(edge))  # not into the side face
+    o = face_outline(image, d.front_face_mask, channels="luma", thin_strips=False)
+    assert o, getattr(o, "reason", "")
+    assert np.abs(o.corners_px - JPEG_RINGING_CORNERS).max() < 0.3
+
+
+@pytest.mark.parametrize("bump", [0.0, 0.01])
+def test_cuts_between_equal_levels_are_no_face_boundaries(bump):
+    """`_stepped_span` over three parts of a blob: a face (level A), a part the same within half the minimum
+    face contrast (A + bump), and a side face 0.1 darker. The front face's span takes in the part of its own
+    level, and stops at the side face."""
+    from depth.measure import _stepped_span
+    h, w = 40, 30
+    blob = np.zeros((h, w), dtype=bool)
+    blob[2:-2, 2:-2] = True
+    linear = np.zeros((h, w, 3))
+    linear[:] = (0.2, 0.3, 0.6)
+    linear[:, 14:21] += (0.0, 0.0, bump)
+    linear[:, 21:] -= 0.1
+    x = np.tile(np.arange(w, dtype=float), (h, 1))
+    edges = np.array([1.0, 13.5, 20.5, 28.0])
+    assert _stepped_span(linear, blob, x, edges, 0, 0.03) == (0, 1)
+    assert _stepped_span(linear, blob, x, edges, 1, 0.03) == (0, 1)
+    linear[:, 14:21] += (0.0, 0.0, 0.02)  # now a step of 0.02 or 0.03: a boundary
+    assert _stepped_span(linear, blob, x, edges, 0, 0.03) == (0, 0)
