@@ -453,6 +453,7 @@ def detect_cubes(
     seed_chroma: float = 0.2,
     min_face_contrast: float = 0.03,
     edge_margin_px: int = 2,
+    compressed: bool = False,
 ) -> list[CubeDetection]:
     """Find cubes reflected in the mirror and separate their front faces.
 
@@ -482,6 +483,11 @@ def detect_cubes(
     edge_margin_px : int
         A blob closer than this to a pixel outside the mirror region (or to the image
         border) is `cut_by_mirror_edge`.
+    compressed : bool
+        The image went through lossy (JPEG) compression, whose ringing raises a face's colour over
+        a few columns inside it: a line of gradient between parts of one level then splits no faces
+        (`_stepped_span`). In an uncompressed image such a line is a fold between two faces lit alike
+        (a grey cube's front and side faces under the sky alone) and splits them.
 
     Returns
     -------
@@ -583,7 +589,7 @@ def detect_cubes(
         cut = bool(np.any(near_outside[sl][local]))
 
         front, sides, split_reason = _split_faces(
-            srgb_to_linear(rgb[sl]), value[sl], chroma[sl], local, min_face_contrast
+            srgb_to_linear(rgb[sl]), value[sl], chroma[sl], local, min_face_contrast, stepped_cuts=compressed
         )
         reasons = []
         if cut:
@@ -680,7 +686,7 @@ def same_material_faces(image: np.ndarray, detection: CubeDetection, min_contras
 
 
 def _split_faces(linear: np.ndarray, value: np.ndarray, chroma: np.ndarray, blob: np.ndarray,
-                 min_contrast: float):
+                 min_contrast: float, stepped_cuts: bool = False):
     """Front-face mask, other face masks and a refusal reason (or None) of one blob (local arrays).
 
     Geometry first: in the mirror image a cube's front face is the widest part of the blob
@@ -691,6 +697,8 @@ def _split_faces(linear: np.ndarray, value: np.ndarray, chroma: np.ndarray, blob
     uniform brightness (see `_split_by_brightness`) removes top/bottom strips. A blob with
     two face-sized parts is two touching cubes of the same colour, or one cube with a cast shadow's edge
     running down its front face (which no outline of one face can follow), and is refused.
+    With `stepped_cuts` (a compressed image), the front face's part reaches across cuts between parts of
+    one level (`_stepped_span`).
     linear : (h, w, 3) linear RGB; value, chroma : (h, w); blob : (h, w) bool.
     """
     reason = None
@@ -708,7 +716,7 @@ def _split_faces(linear: np.ndarray, value: np.ndarray, chroma: np.ndarray, blob
             if len(widths) > 1 and widths[order[1]] >= 0.7 * widths[k] and widths[order[1]] >= 6:
                 reason = ("two face-sized parts in one blob: touching cubes of the same colour, or a shadow "
                           "edge across a face")
-            lo, hi = _stepped_span(linear, blob, x, edges, k, min_contrast)
+            lo, hi = _stepped_span(linear, blob, x, edges, k, min_contrast) if stepped_cuts else (k, k)
             region = blob & (x > edges[lo]) & (x < edges[hi + 1])
     reason = reason or _neck_reason(blob)
     front, _ = _split_by_brightness(value, chroma, region, min_contrast)

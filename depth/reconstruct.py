@@ -303,7 +303,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             if outline:
                 yield face_mask | part, outline
 
-    detections = detect_cubes(despeckled(img) if compressed else img, mask)
+    detections = detect_cubes(despeckled(img) if compressed else img, mask, compressed=compressed)
     blobs = np.zeros(mask.shape, dtype=bool)  # every blob's pixels, refused ones too
     for det in detections:
         blobs |= det.mask
