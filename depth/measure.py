@@ -732,8 +732,9 @@ def _stepped_span(linear: np.ndarray, blob: np.ndarray, x: np.ndarray, edges: np
     """The parts lo..hi (between `edges`, in sheared columns x) around part k that no face boundary
     separates from it.
 
-    A cut is a face boundary only where the parts on either side of it differ in level (the median
-    linear RGB of their pixels off the blob's outline) by at least half `min_contrast`, the weakest
+    Used for compressed images only (`detect_cubes`' `compressed`; elsewhere such a line is a fold between
+    faces lit alike). A cut is a face boundary only where the parts on either side of it differ in level
+    (the median linear RGB of their pixels off the blob's outline) by at least half `min_contrast`, the weakest
     boundary `_vertical_edge_lines` looks for (a boundary of contrast c puts c/2 in each column beside
     it). A line of gradient between equal levels is a bump, not a step: JPEG ringing a few pixels
     inside a face, along a block boundary (reconstruct bench, JPEG s15/4: a cut 6.5 px inside a 29 px
