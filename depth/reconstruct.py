@@ -9,7 +9,7 @@ reason, rather than guessed.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -18,6 +18,7 @@ from depth.errors import DepthError
 from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED, METHODS,
                             NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, CubeEstimate, FaceMeasurement,
                             estimate_face, estimate_faces_shape_prior)
+from depth.workers import fork_map
 from raytrace.scene import Cube
 
 __all__ = ["ALL_METHODS", "CubeResult", "Refusal", "Reconstruction", "reconstruct", "check_image"]
@@ -105,6 +106,26 @@ def check_image(image, resolution) -> np.ndarray:
 def _bbox(mask: np.ndarray) -> tuple:
     ys, xs = np.nonzero(mask)
     return (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1)
+
+
+def _pixels(mask: np.ndarray) -> np.ndarray:
+    """(N, 2) float64 (u, v) of a mask's pixels, in row-major order."""
+    ys, xs = np.nonzero(mask)
+    return np.column_stack([xs, ys]).astype(np.float64)
+
+
+def _mask_of(pixels: np.ndarray, shape: tuple) -> np.ndarray:
+    """The (H, W) bool mask of (N, 2) integer-valued (u, v) pixels (`_pixels` undone)."""
+    out = np.zeros(shape, dtype=bool)
+    px = pixels.astype(np.intp)
+    out[px[:, 1], px[:, 0]] = True
+    return out
+
+
+def _bare(meas: FaceMeasurement) -> FaceMeasurement:
+    """The measurement without its blob mask: what a worker process sends back (the image-sized
+    mask is the parent's already)."""
+    return replace(meas, blob_mask=None)
 
 
 DESPECKLE_PX = 5
@@ -250,7 +271,8 @@ def _side_to_grow(failed) -> int | None:
 
 
 def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: float | None = None,
-                progress=None, compressed: bool = False, blur_domain: str = "auto") -> Reconstruction:
+                progress=None, compressed: bool = False, blur_domain: str = "auto",
+                workers: int | None = None) -> Reconstruction:
     """Find and estimate every cube in a mirror image.
 
     Parameters
@@ -260,7 +282,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     mirror : raytrace.mirror.CylinderMirror (or any mirror with `intersect`)
     method : "exact" (default), "ddar", "dds" or "shape_prior"
     cube_size : float, optional — known edge length in metres
-    progress : callable(done, total), optional
+    progress : callable(done, total), optional: called as each detected blob is outlined
     compressed : bool — the image went through lossy (JPEG) compression: cubes are detected on
         the `despeckled` image, edges are located on luma (its chroma is subsampled; colour where
         luma shows no edge) and its ringing is not taken for thin strips beside the faces
@@ -269,6 +291,8 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         pooled (`depth.measure.blur_domain_verdict`: encoded only when they say so clearly, since a
         renderer's pixel filter and optical blur act on linear light). `Reconstruction.blur_domain`
         says what was used.
+    workers : int >= 1, optional — processes the faces are outlined and estimated in (forked,
+        `depth.workers.fork_map`); default: every available core. The results do not depend on it.
     """
     from raytrace.truth import mirror_mask, mirror_rays
     from depth.measure import (BLUR_DOMAINS, blur_domain_verdict, detect_cubes, extended_to_blob, face_outline,
@@ -278,6 +302,8 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         raise DepthError(f"method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
     if blur_domain not in ("auto",) + BLUR_DOMAINS:
         raise DepthError(f"blur_domain: expected one of auto, {', '.join(BLUR_DOMAINS)}, got {blur_domain!r}")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1):
+        raise DepthError(f"workers: expected an integer >= 1, got {workers!r}")
     img = check_image(image, camera.resolution)
     mask = mirror_mask(camera, mirror)
     if not mask.any():
@@ -308,18 +334,13 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     for det in detections:
         blobs |= det.mask
     thin_strips = not compressed  # JPEG ringing beside an edge mimics a thin strip
-    cubes, refused, measured, blurred = [], [], [], []
-    achromatic = set()  # indices into measured of the faces found without colour
-    alternatives = {}  # index into measured: (blob mask, face pixels, channels) of a face with two readings
-    sources = []  # per measured face: (detection, face mask, channels)
-    domain, any_blurred = blur_domain, False
-    total = max(len(detections), 1)
-    for i, det in enumerate(detections):
-        bbox = _bbox(det.mask)
+
+    def outlined(i):
+        """Detection i's front face outlined: (face pixels (N, 2) (u, v), outline, channels, its
+        measurement without the blob mask), or the reason it is refused (str)."""
+        det = detections[i]
         if det.reason or det.cut_by_mirror_edge or det.occluded:
-            refused.append(Refusal(bbox, det.reason or ("cut by the mirror's edge" if det.cut_by_mirror_edge
-                                                        else "occluded by another cube")))
-            continue
+            return det.reason or ("cut by the mirror's edge" if det.cut_by_mirror_edge else "occluded by another cube")
         channels = "luma" if compressed else "colour"  # JPEG: chroma at half resolution
         face_mask = det.front_face_mask
         outline = face_outline(img, face_mask, thin_strips=thin_strips, channels=channels, blur_domain="linear")
@@ -341,50 +362,51 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             # a face cut in two by a cast shadow's edge: the union with its other part (`same_material_faces`)
             face_mask, outline = next(unions(det, face_mask, channels, "linear"), (face_mask, outline))
         if not outline:
-            refused.append(Refusal(bbox, f"face outline: {outline.reason}"))
+            return f"face outline: {outline.reason}"
+        face_px = _pixels(face_mask)
+        return face_px, outline, channels, _bare(_measurement(img, det.mask, outline, face_px, channels, compressed))
+
+    # Each detection's face on its own (in worker processes), the larger blobs first.
+    outcomes = fork_map(outlined, len(detections), workers, cost=[int(det.mask.sum()) for det in detections],
+                        progress=progress)
+    cubes, refused, measured, blurred = [], [], [], []
+    achromatic = set()  # indices into measured of the faces found without colour
+    alternatives = {}  # index into measured: (blob mask, face pixels, channels) of a face with two readings
+    sources = []  # per measured face: (detection, face mask, channels)
+    domain, any_blurred = blur_domain, False
+    for det, outcome in zip(detections, outcomes):
+        bbox = _bbox(det.mask)
+        if isinstance(outcome, str):
+            refused.append(Refusal(bbox, outcome))
             continue
+        face_px, outline, channels, meas = outcome
+        face_mask = _mask_of(face_px, mask.shape)
         any_blurred = any_blurred or outline.blurred
         if outline.blurred and domain != "linear":
             blurred.append((len(measured), det, face_mask, channels))
-        ys, xs = np.nonzero(face_mask)
-        face_px = np.column_stack([xs, ys]).astype(np.float64)
         if outline.alternative is not None:  # a one-pixel strip's other reading, for a refused cube
             alternatives[len(measured)] = (det.mask, face_px, channels)
         if det.achromatic:
             achromatic.add(len(measured))
         sources.append((det, face_mask, channels))
-        measured.append((_measurement(img, det.mask, outline, face_px, channels, compressed), bbox, outline))
-        if progress is not None:
-            progress(i + 1, total)
+        measured.append((replace(meas, blob_mask=det.mask), bbox, outline))
     if blurred:
         if domain == "auto":  # the image's blurred faces pooled
             domain = blur_domain_verdict(img, [measured[k][2] for k, _, _, _ in blurred])
         if domain == "encoded":  # the edges of the blurred faces again, on the encoded values
-            for k, det, face_mask, channels in blurred:
-                meas, bbox, _ = measured[k]
+            def encoded(j):
+                k, det, face_mask, channels = blurred[j]
                 outline = face_outline(img, face_mask, thin_strips=thin_strips, channels=channels,
                                        blur_domain="encoded")
                 if not outline:  # cannot happen after a linear outline succeeded; keep that one
-                    continue
-                measured[k] = (_measurement(img, det.mask, outline, meas.face_px, channels, compressed), bbox, outline)
+                    return None
+                meas = _measurement(img, det.mask, outline, measured[k][0].face_px, channels, compressed)
+                return _bare(meas), outline
+            redone = fork_map(encoded, len(blurred), workers, cost=[int(f.sum()) for _, _, f, _ in blurred])
+            for (k, det, _, _), again in zip(blurred, redone):
+                if again is not None:
+                    measured[k] = (replace(again[0], blob_mask=det.mask), measured[k][1], again[1])
     up = getattr(mirror, "axis", None)
-    if method == "shape_prior":
-        estimates = estimate_faces_shape_prior(rays, [m for m, _, _ in measured])
-    else:
-        estimates = [estimate_face(rays, m, method=method, cube_size=cube_size, up=up) for m, _, _ in measured]
-        for k, (blob, face_px, channels) in alternatives.items():
-            # one off-colour pixel beside a side along the pixel grid is read as a strip (a side face)
-            # where the fit spans the pixel, else as a pixel mixing the face, a narrower strip and the
-            # outside; where no cube fits that reading, the other (choosing by the lower misfit
-            # instead moved Mitsuba s01/0 from 3.9 to 9.9 %)
-            if estimates[k]:
-                continue
-            alt_outline = measured[k][2].alternative
-            alt_meas = _measurement(img, blob, alt_outline, face_px, channels, compressed)
-            alt = estimate_face(rays, alt_meas, method=method, cube_size=cube_size, up=up)
-            if alt:
-                estimates[k] = alt
-                measured[k] = (alt_meas, measured[k][1], alt_outline)
 
     def verdict(k, est, meas) -> str | None:
         """Why the estimate of face k is refused, or None."""
@@ -398,7 +420,23 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             return f"{est.method}: {direct}"
         return None
 
-    for k, (est, (meas, bbox, outline)) in enumerate(zip(estimates, measured)):
+    def settled(k, est=None):
+        """Face k's (estimate, outline, reason refused or None); est: a joint estimate
+        (shape_prior), taken as it is, else the face is estimated here."""
+        meas, _, outline = measured[k]
+        if est is None:
+            est = estimate_face(rays, meas, method=method, cube_size=cube_size, up=up)
+            if not est and k in alternatives:
+                # one off-colour pixel beside a side along the pixel grid is read as a strip (a side face)
+                # where the fit spans the pixel, else as a pixel mixing the face, a narrower strip and the
+                # outside; where no cube fits that reading, the other (choosing by the lower misfit
+                # instead moved Mitsuba s01/0 from 3.9 to 9.9 %)
+                blob, face_px, channels = alternatives[k]
+                alt_outline = outline.alternative
+                alt_meas = _measurement(img, blob, alt_outline, face_px, channels, compressed)
+                alt = estimate_face(rays, alt_meas, method=method, cube_size=cube_size, up=up)
+                if alt:
+                    est, meas, outline = alt, alt_meas, alt_outline
         reason = verdict(k, est, meas)
         if reason and method != "shape_prior":
             # Where a cast shadow's curved edge cuts the face in two, the front face is only one part of
@@ -407,13 +445,20 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             # merged side, top or bottom face in it is modelled by `exact` as such.
             det, face_mask, channels = sources[k]
             for union, other in unions(det, face_mask, channels, "encoded" if domain == "encoded" else "linear"):
-                ys, xs = np.nonzero(union)
-                other_meas = _measurement(img, det.mask, other, np.column_stack([xs, ys]).astype(np.float64),
-                                          channels, compressed)
+                other_meas = _measurement(img, det.mask, other, _pixels(union), channels, compressed)
                 other_est = estimate_face(rays, other_meas, method=method, cube_size=cube_size, up=up)
                 if verdict(k, other_est, other_meas) is None:
                     est, meas, outline, reason = other_est, other_meas, other, None
                     break
+        return est, outline, reason
+
+    if method == "shape_prior":
+        joint = estimate_faces_shape_prior(rays, [m for m, _, _ in measured])
+        results = [settled(k, est) for k, est in enumerate(joint)]
+    else:  # each face on its own (in worker processes), those with the most edge points first
+        results = fork_map(settled, len(measured), workers,
+                           cost=[sum(len(s) for s in m.sides_px) for m, _, _ in measured])
+    for (est, outline, reason), (_, bbox, _) in zip(results, measured):
         if reason:
             refused.append(Refusal(bbox, reason))
             continue

@@ -29,7 +29,7 @@ from .errors import RaytraceError
 from .mirror import EPS_T, CylinderMirror, reflect
 from .scene import Scene
 
-__all__ = ["Render", "render", "linear_to_srgb8", "trace_paths", "keep_freed_memory"]
+__all__ = ["Render", "render", "linear_to_srgb8", "trace_paths", "keep_freed_memory", "single_threaded_blas"]
 
 TILE_PIXELS = 1 << 15
 """Pixels per tile of the pixel-centre pass (fixed, so results do not depend on `workers`).
@@ -607,7 +607,7 @@ def _openblas_thread_controls() -> list:
 
 
 @contextlib.contextmanager
-def _single_threaded_blas():
+def single_threaded_blas():
     """Run the block with one OpenBLAS thread (restored afterwards).
 
     The renderer's matrix products are tiny ((N, 3) @ (3, 3)); with OpenBLAS's own threads on
@@ -719,7 +719,7 @@ def render(
     parallel = workers > 1 and npx >= MIN_PARALLEL_PIXELS
     pool = None
     try:
-        with _single_threaded_blas():
+        with single_threaded_blas():
             if parallel:
                 pool = ProcessPoolExecutor(max_workers=min(workers, len(tiles)),
                                            mp_context=multiprocessing.get_context("fork"),

@@ -291,3 +291,16 @@ def test_a_quadrilateral_shadow_is_not_taken_for_a_cube_before_the_mirror(tmp_pa
     mirror, with no blob there, while both cubes are still found (before, it came out as a third cube)."""
     rectangle = np.array([320.0, 380.0]) + np.array([[-8, -13], [8, -13], [8, 13], [-8, 13]], dtype=np.float64)
     assert "between the camera and the mirror" in _refusal_of_painted_shadow(tmp_path, rectangle).reason
+
+
+def test_faces_estimated_in_worker_processes_give_the_results_of_one_process(scene):
+    from catadioptric.setup import load_setup
+    from depth.errors import DepthError
+    from depth.reconstruct import reconstruct
+    setup = load_setup(scene / "in.toml")
+    img = cv2.cvtColor(cv2.imread(str(scene / "mirror.png")), cv2.COLOR_BGR2RGB)
+    runs = [reconstruct(img, setup.camera.build(), setup.mirror.build(), workers=w) for w in (1, 2)]
+    one, two = ([c.to_dict() for c in r.cubes] + [x.to_dict() for x in r.refused] for r in runs)
+    assert len(runs[0].cubes) == 2 and one == two
+    with pytest.raises(DepthError, match="workers: expected an integer >= 1, got 0"):
+        reconstruct(img, setup.camera.build(), setup.mirror.build(), workers=0)

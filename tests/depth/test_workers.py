@@ -1,0 +1,59 @@
+"""Tests of `depth.workers.fork_map`: the same results as a plain loop, run in other processes."""
+
+import os
+
+import numpy as np
+import pytest
+
+from depth.workers import available_cores, fork_map
+
+
+def test_results_come_back_in_task_order_from_forked_processes():
+    data = np.arange(10) ** 2  # a closure over this process's state, inherited by the workers
+    out = fork_map(lambda i: (int(data[i]), os.getpid()), 7, workers=2, cost=[3, 1, 4, 1, 5, 9, 2])
+    assert [v for v, _ in out] == [i * i for i in range(7)]
+    pids = {p for _, p in out}
+    assert os.getpid() not in pids and 1 <= len(pids) <= 2
+
+
+def test_one_worker_runs_here():
+    assert {p for p in fork_map(lambda i: os.getpid(), 3, workers=1)} == {os.getpid()}
+
+
+def test_progress_counts_every_task_in_this_process():
+    calls = []
+    fork_map(lambda i: i, 5, workers=2, progress=lambda done, total: calls.append((done, total, os.getpid())))
+    assert [(d, t) for d, t, _ in calls] == [(k, 5) for k in range(1, 6)]
+    assert {p for _, _, p in calls} == {os.getpid()}
+
+
+def test_the_costliest_tasks_are_handed_out_first():
+    # serially (one worker) the hand-out order is the order they run in
+    seen = []
+    fork_map(lambda i: seen.append(i), 4, workers=1, cost=[1.0, 7.0, 3.0, 5.0])
+    assert seen == [1, 3, 2, 0]
+
+
+def test_a_task_error_is_raised_here():
+    def task(i):
+        if i == 2:
+            raise ValueError("task 2 failed")
+        return i
+    with pytest.raises(ValueError, match="task 2 failed"):
+        fork_map(task, 4, workers=2)
+
+
+def test_a_task_may_itself_map_without_forking_again():
+    outer = os.getpid()
+    out = fork_map(lambda i: fork_map(lambda j: (i, j, os.getpid()), 2, workers=2), 2, workers=2)
+    for i, inner in enumerate(out):
+        assert [(a, b) for a, b, _ in inner] == [(i, 0), (i, 1)]
+        pids = {p for _, _, p in inner}
+        assert len(pids) == 1 and outer not in pids  # both in the worker that ran task i
+
+
+def test_no_tasks_and_bad_worker_counts():
+    assert fork_map(lambda i: i, 0) == []
+    with pytest.raises(ValueError, match="workers"):
+        fork_map(lambda i: i, 3, workers=0)
+    assert available_cores() >= 1
