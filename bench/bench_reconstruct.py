@@ -25,6 +25,7 @@ import cv2
 import numpy as np
 
 from bench.scenes import make_scenes, scene_hash
+from depth.workers import available_cores
 
 METHODS = ("exact", "ddar", "dds", "shape_prior")
 VARIANTS = ("clean", "noise", "blur", "jpeg")
@@ -264,12 +265,21 @@ def run(quick: bool = False, log=print) -> dict:
                     with memo:
                         rec = reconstruct(img, camera, mirror, **kw)
                 dt = time.perf_counter() - t0
+                one = None
+                if timed and method == "exact" and setup.camera.resolution[0] == 2048:
+                    # the same call in one process (the faces not spread over worker processes), right
+                    # after: the ratio of the two in one run is the parallel speed-up (run second, it
+                    # finds this process's memory already faulted in, so the ratio understates it)
+                    t0 = time.perf_counter()
+                    reconstruct(img, camera, mirror, workers=1, **kw)
+                    one = time.perf_counter() - t0
                 res = [c.to_dict() for c in rec.cubes]
                 sc_ = score(res, truth, kinds, turns)
                 records.append({"scene": sc.name, "renderer": renderer, "kind": sc.kind, "variant": vname,
                                 "same_size": sc.same_size,
                                 "method": method, "resolution": list(setup.camera.resolution),
                                 "seconds": dt if timed else None, "seconds_raymap_cached": None if timed else dt,
+                                "seconds_one_process": one,
                                 "false_positives": sc_["false_positives"], "cubes": sc_["cubes"],
                                 "refused": [r.to_dict() for r in rec.refused], "blur_domain": rec.blur_domain})
         if renderer == "ours":
@@ -327,12 +337,19 @@ def report(result: dict, log=print) -> dict:
                 f"{_pct(s['axis'][0])}% {_pct(s['axis'][1])}% | {_pct(s['turned'][0]):>9s}% {_pct(s['turned'][1])}% | "
                 f"{_pct(s['size'][0])}% {_pct(s['size'][1])}% | {t}")
     log("")
-    log("time per image (full pipeline incl. the ray map; clean + Mitsuba images): median / max seconds")
+    log(f"time per image (full pipeline incl. the ray map; clean + Mitsuba images; faces on {available_cores()} "
+        "worker processes): median / max seconds")
     for m in METHODS:
         s = table[f"{m}/all"]
         a, b = s["seconds"] or (np.nan, np.nan)
         c, d = s["seconds_2048"] or (np.nan, np.nan)
         log(f"  {m:11s} all sizes {a:5.2f} / {b:5.2f}    2048x1536 {c:5.2f} / {d:5.2f}")
+    pairs = [(r["seconds"], r["seconds_one_process"]) for r in recs if r.get("seconds_one_process")]
+    if pairs:
+        par, one = np.array(pairs).T
+        log(f"  exact, 2048x1536, the same images in one process (each run right after the timed one): median "
+            f"{np.median(one):.2f} / max {one.max():.2f} s; worker processes {np.median(one / par):.2f}x faster "
+            "(median of the per-image ratios)")
     # Oracle (model-only) errors.
     log("")
     log("model error only (oracle outlines from the exact reflection of the true face edges), centre error %:")
