@@ -194,10 +194,11 @@ def _cmd_reconstruct(args) -> int:
         raise CatadioptricError(f"{json_path}: -o: expected an output file name ending in .json")
     if args.overlay and Path(args.overlay).suffix.lower() != ".png":
         raise CatadioptricError(f"{args.overlay}: --overlay: expected an output file name ending in .png")
+    workers = None if args.workers is None else _check_positive_int(args.workers, "--workers")
     with Progress("measuring cubes") as bar:
         setup, setup_path, image, rec = rc.run_reconstruction(args.image, args.setup, args.method,
                                                               args.cube_size, progress=bar,
-                                                              blur_domain=args.blur_domain)
+                                                              blur_domain=args.blur_domain, workers=workers)
     result = rc.result_dict(args.image, setup_path, rec)
     truth = _truth_beside(args.image)
     overlay = rc.draw_overlay(image, rec) if args.overlay else None
@@ -300,6 +301,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--blur-domain", default=None, metavar="D",
                    help="where a blurred image was blurred: auto (default: from the image), encoded (image "
                         "software blurred the stored values) or linear (optics, a renderer's pixel filter)")
+    r.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="processes the faces are measured in (default: every core; the result is the same)")
     r.set_defaults(func=_cmd_reconstruct)
 
     rp = sub.add_parser("report", help="an HTML report with 3D views, plots and annotated images")

@@ -51,8 +51,10 @@ def default_setup_path(image_path) -> Path:
     return Path(image_path).with_suffix(".toml")
 
 
-def run_reconstruction(image_path, setup_path=None, method=None, cube_size=None, progress=None, blur_domain=None):
-    """Validate the inputs and reconstruct; returns (setup, setup_path, image, Reconstruction)."""
+def run_reconstruction(image_path, setup_path=None, method=None, cube_size=None, progress=None, blur_domain=None,
+                       workers=None):
+    """Validate the inputs and reconstruct (the faces on `workers` processes, default every core); returns
+    (setup, setup_path, image, Reconstruction)."""
     from depth.measure import BLUR_DOMAINS
     from depth.reconstruct import ALL_METHODS, DEFAULT_METHOD, reconstruct
     method = method or DEFAULT_METHOD
@@ -74,7 +76,7 @@ def run_reconstruction(image_path, setup_path=None, method=None, cube_size=None,
     try:
         rec = reconstruct(image, setup.camera.build(), setup.mirror.build(), method=method,
                           cube_size=cube_size, progress=progress, compressed=is_jpeg(image_path),
-                          blur_domain=blur_domain)
+                          blur_domain=blur_domain, workers=workers)
     except DepthError as exc:
         raise CatadioptricError(f"{image_path}: {exc}") from None
     return setup, setup_path, image, rec

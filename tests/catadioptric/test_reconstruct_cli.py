@@ -138,6 +138,8 @@ def test_bad_inputs_exit_1_with_one_line_and_write_nothing(scene, capsys, tmp_pa
          "--cube-size: expected a positive edge length")
     _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--blur-domain", "gamma", "-o", out],
          "--blur-domain: expected one of auto, encoded, linear")
+    _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--workers", "0", "-o", out],
+         "--workers: expected an integer >= 1, got 0")
 
 
 def test_image_without_cubes_says_so(scene, capsys, tmp_path):
