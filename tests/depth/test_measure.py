@@ -1327,3 +1327,25 @@ def test_cuts_between_equal_levels_are_no_face_boundaries(bump):
     assert _stepped_span(linear, blob, x, edges, 1, 0.03) == (0, 1)
     linear[:, 14:21] += (0.0, 0.0, 0.02)  # now a step of 0.02 or 0.03: a boundary
     assert _stepped_span(linear, blob, x, edges, 0, 0.03) == (0, 0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(3, 40), st.integers(3, 40), st.booleans())
+def test_the_3x3_mean_at_chosen_pixels_is_a_box_filter_read_there(seed, h, w, interior):
+    """`_mean3x3` (the background level `_enclosed` compares a region's rim with, computed only where
+    it is asked for) against scipy's box filter over the whole image, edge pixels repeated: both the
+    fast path (every pixel asked for 1 px inside the image) and the one for pixels on its edge."""
+    from scipy import ndimage
+
+    from depth.measure import _mean3x3
+
+    rng = np.random.default_rng(seed)
+    img = rng.random((h, w, 3))
+    yy, xx = np.mgrid[0:h, 0:w]
+    pool = np.flatnonzero(((yy > 0) & (yy < h - 1) & (xx > 0) & (xx < w - 1)).ravel() if interior
+                          else np.ones(h * w, dtype=bool))
+    flat = rng.choice(pool, size=min(len(pool), 25), replace=False)
+    if not interior:
+        flat = np.r_[flat, 0, h * w - 1]  # the corners, whose neighbours lie beyond two edges
+    box = ndimage.uniform_filter(img, size=(3, 3, 1), mode="nearest").reshape(-1, 3)
+    np.testing.assert_allclose(_mean3x3(img, flat), box[flat], rtol=0, atol=1e-12)
