@@ -313,7 +313,8 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     # each channel copied over the mirror's bounding box only
     rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
     box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
-    spread = max(hi - lo for lo, hi, _, _ in (cv2.minMaxLoc(np.ascontiguousarray(img[box + (k,)]), np.ascontiguousarray(mask[box]).view(np.uint8))
+    in_box = np.ascontiguousarray(mask[box]).view(np.uint8)
+    spread = max(hi - lo for lo, hi, _, _ in (cv2.minMaxLoc(np.ascontiguousarray(img[box + (k,)]), in_box)
                                              for k in range(3)))
     if spread < 2.0 / 255.0:
         raise DepthError("image: no mirror content (the mirror region is uniform)")
