@@ -356,18 +356,13 @@ def _mean3x3(img: np.ndarray, flat: np.ndarray) -> np.ndarray:
     (the image's edge repeated beyond it). Only the pixels asked for: over a whole 2048×1536 mirror,
     a float64 box filter touched 60 MB afresh on each call (0.16 s the first time)."""
     h, w, c = img.shape
-    flat = np.asarray(flat, dtype=np.intp)
-    y, x = np.divmod(flat, w)
+    y, x = np.divmod(np.asarray(flat, dtype=np.intp), w)
     pixels = img.reshape(-1, c)
-    out = np.zeros((len(flat), c))
-    if np.all((y > 0) & (y < h - 1) & (x > 0) & (x < w - 1)):  # inside: the neighbours at fixed offsets
-        for off in (np.arange(-1, 2)[:, None] * w + np.arange(-1, 2)[None, :]).ravel():
-            out += np.take(pixels, flat + off, axis=0)  # (`take`: several times faster than fancy indexing)
-        return out / 9.0
+    out = np.zeros((len(y), c))
     for dy in (-1, 0, 1):
-        yy = np.clip(y + dy, 0, h - 1)
-        for dx in (-1, 0, 1):
-            out += img[yy, np.clip(x + dx, 0, w - 1)]
+        row = np.clip(y + dy, 0, h - 1) * w
+        for dx in (-1, 0, 1):  # (`take` of flat indices: several times faster than fancy indexing)
+            out += np.take(pixels, row + np.clip(x + dx, 0, w - 1), axis=0)
     return out / 9.0
 
 

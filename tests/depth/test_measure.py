@@ -1334,7 +1334,7 @@ def test_cuts_between_equal_levels_are_no_face_boundaries(bump):
 def test_the_3x3_mean_at_chosen_pixels_is_a_box_filter_read_there(seed, h, w, interior):
     """`_mean3x3` (the background level `_enclosed` compares a region's rim with, computed only where
     it is asked for) against scipy's box filter over the whole image, edge pixels repeated: both the
-    fast path (every pixel asked for 1 px inside the image) and the one for pixels on its edge."""
+    pixels 1 px inside the image and pixels on its edge."""
     from scipy import ndimage
 
     from depth.measure import _mean3x3
