@@ -685,11 +685,11 @@ def test_a_face_mask_a_pixel_short_of_its_top_is_stepped_out_to_the_edge(v0, dv,
 
 
 @pytest.mark.xfail(strict=True, reason="the edge-spread pass moves a side to a strip's inner edge by one offset, "
-                   "parallel to the outline of face and strip: top corners 0.27 / 0.25 px off (known limit)")
+                   "parallel to the outline of face and strip: top corners 0.20-0.27 px off (known limit)")
 @pytest.mark.parametrize("tilt", [-0.6, 0.6])
 def test_a_top_strip_whose_far_edge_slopes_otherwise_leaves_the_face_corners_exact(tilt):
     """A top face 1.2 px tall at the face's left end and 1.2 + tilt px at its right (its far edge
-    images at another slope than the front face's top edge), as bright as the front face in hue: the
+    images at another slope than the front face's top edge), of the front face's hue but brighter: the
     top side is moved to the strip's inner edge at that edge's own slope, not kept parallel to the
     outline of face and strip together (which put each top corner tilt/2 px off)."""
     c = FakeCube((60.3, 30.4), (84.6, 30.9), (85.2, 120.3), (60.9, 119.8), top_sag=0.6, side=None,
@@ -703,7 +703,7 @@ def test_a_top_strip_whose_far_edge_slopes_otherwise_leaves_the_face_corners_exa
 
 
 @pytest.mark.xfail(strict=True, reason="the edge-spread pass pools a side only where 40 pixels lie beyond 2.5 px "
-                   "corner margins: a 6 px face's top strip goes unseen, its top corners 1.5 px high (known limit)")
+                   "corner margins: a 6 px face's top strip goes unseen, its top corners 1.5-1.7 px high (known limit)")
 @pytest.mark.parametrize("u0", [60.3, 60.7])
 def test_a_top_strip_on_a_face_six_pixels_wide_is_found(u0):
     """A face 6 px wide (its top side too short for the corners' usual margins) under a brighter top
