@@ -815,7 +815,7 @@ def test_a_column_brighter_than_the_face_beside_a_side_on_the_pixel_grid_counts_
     img[:, :10] = face
     img[:, 10] = face * ratio
     points = np.column_stack([np.full(20, start), np.arange(10.0, 30.0)])
-    e, contrast = _edge_offsets(img, points, np.tile([1.0, 0.0], (20, 1)), 1.5, 0.02)
+    e, contrast, _ = _edge_offsets(img, points, np.tile([1.0, 0.0], (20, 1)), 1.5, 0.02)
     assert np.all(contrast > 0.02)
     np.testing.assert_allclose(start + e, 10.5, atol=1e-6)
 
@@ -870,9 +870,39 @@ def test_luma_falls_back_to_colour_where_luma_shows_no_edge():
     colour = face_outline(image, mask, channels="colour")
     assert colour and corner_errors(colour, face).max() <= 0.1
     luma = face_outline(image, mask, channels="luma")
-    assert luma and np.array_equal(luma.corners_px, colour.corners_px)
+    # the same edges (the top and bottom read over a longer profile, `JPEG_CHROMA_REACH_PX`: within 1e-7 px)
+    assert luma and np.abs(luma.corners_px - colour.corners_px).max() < 1e-4
     with pytest.raises(DepthError, match="channels: expected one of colour, luma"):
         face_outline(image, mask, channels="rgb")
+
+
+@pytest.mark.parametrize("left", [60.3, 63.6])
+@pytest.mark.parametrize("mask_low_px", [0, 1, 2, 3])
+def test_a_jpeg_face_whose_bottom_shows_no_luma_edge_is_outlined_on_its_chroma(left, mask_low_px):
+    """Below the face, a background of the face's luma (a dark floor tile under a purple cube: the
+    reconstruct bench's JPEG s18/0 and s14/2), so only the chroma shows the bottom edge, and JPEG
+    stores it at half resolution, spread over about four pixels. Read over ±1.5 px, the bottom sat
+    wherever the face mask put the profile (the mask of a blob widened by the chroma's smear): the
+    bottom corners 1.2–2.8 px off, or no edge at all, with the mask 2–3 px low; here 0.3–0.65 px
+    whatever the mask (s14/2's bottom side: 1.97 → 0.02 px off in the median)."""
+    y_grey = linear_to_srgb(np.array(0.35))  # make_image's plain background (linear 0.35)
+    purple = np.array([0.7, 0.0, 0.8])
+    purple[1] = (y_grey - 0.299 * purple[0] - 0.114 * purple[2]) / 0.587  # sRGB, the background's luma Y'
+    face = FakeCube((left, 40.6), (left + 16.5, 41.2), (left + 17.2, 150.2), (left + 0.8, 149.1),
+                    albedo=tuple(srgb_to_linear(purple)), front_shade=1.0, side=None)
+    image, _ = make_image((200, 140), [face], background="grey", decoy=False)
+    u, v = np.meshgrid(np.arange(140.0), np.arange(200.0))
+    mask = pixel_truth(image.shape[:2], face, "face")
+    image[~mask & ~((v > 120) & (u > 50) & (u < 90))] = linear_to_srgb(np.array(0.8))  # luma edges elsewhere
+    col = int(left) + 8
+    assert np.isclose(image[145, col] @ [0.299, 0.587, 0.114], image[160, col] @ [0.299, 0.587, 0.114],
+                      atol=2 / 255)
+    compressed = jpeg(image)
+    if mask_low_px:
+        mask[mask_low_px:] |= mask[:-mask_low_px].copy()
+    o = face_outline(compressed, mask, channels="luma", thin_strips=False)
+    assert o, o
+    assert corner_errors(o, face)[2:].max() <= 0.7
 
 
 def test_despeckled_jpeg_gives_more_faces_outlined_within_half_a_pixel():
