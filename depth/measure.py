@@ -1348,7 +1348,8 @@ def _along_side(levels: np.ndarray) -> np.ndarray:
     return ndimage.median_filter(levels, size=(5,) + (1,) * (levels.ndim - 1), mode="nearest")
 
 
-def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25, colour_half_width=None):
+def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25, colour_half_width=None,
+                  compressed=False):
     """Signed distance along the normal from each point to the edge, and the contrast.
 
     The linear-RGB profile c(s), s ∈ [−L, L], is projected on the direction
@@ -1361,7 +1362,8 @@ def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25, 
     used instead wherever its contrast reaches `min_contrast`; the points where it does not are
     measured on colour over ±`colour_half_width` (default: `half_width`), wide enough for a JPEG
     image's chroma, stored at half resolution and spread over about four pixels by the decoder
-    (`JPEG_CHROMA_REACH_PX`). Returns the offsets, the contrasts and each point's profile half-width.
+    (`JPEG_CHROMA_REACH_PX`). `compressed`: colour from a JPEG image (its ringing is not clipped,
+    see `_OVERSHOOT`). Returns the offsets, the contrasts and each point's profile half-width.
     """
     prof = _profiles(linear, points, normals, half_width, step)  # (N, K, 3) or, with luma, (N, K, 4)
     luma = prof[..., 3] if prof.shape[-1] == 4 else None
@@ -1391,13 +1393,13 @@ def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25, 
             # colour alone: read over a profile that reaches the chroma's levels, which a profile of
             # ±half_width can fall short of (then the edge sits wherever the profile is centred)
             e_c, c_c, _ = _edge_offsets(linear[..., :3], points[~use_luma], normals[~use_luma], colour_half_width,
-                                        min_contrast, step)
+                                        min_contrast, step, compressed=True)
             area = np.sum((q[:, 1:] + q[:, :-1]) * 0.5, axis=1) * step
             e, reach = area - half_width, np.full(len(q), float(half_width))
             e[~use_luma], contrast[~use_luma], reach[~use_luma] = e_c, c_c, colour_half_width
             return e, contrast, reach
     area = np.sum((q[:, 1:] + q[:, :-1]) * 0.5, axis=1) * step
-    if len(q) and luma is None:  # (JPEG, edges on luma: its ringing overshoots on both sides, and cancels)
+    if len(q) and luma is None and not compressed:  # (JPEG: its ringing overshoots on both sides, and cancels)
         hi = 1.0 if np.median(q.max(axis=1)) > 1.0 + _OVERSHOOT else np.inf
         lo = 0.0 if np.median(q.min(axis=1)) < -_OVERSHOOT else -np.inf
         if (np.isfinite(hi) or np.isfinite(lo)) and _one_phase(points, normals, area - half_width):
