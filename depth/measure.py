@@ -1388,16 +1388,6 @@ def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25, 
         use_luma = np.abs(dy) >= min_contrast
         q = np.where(use_luma[:, None], (luma - y_out[:, None]) / np.where(use_luma, dy, 1.0)[:, None], q)
         contrast = np.where(use_luma, np.abs(dy), contrast)
-        wide = colour_half_width is not None and colour_half_width > half_width
-        if wide and not use_luma.all():
-            # colour alone: read over a profile that reaches the chroma's levels, which a profile of
-            # ±half_width can fall short of (then the edge sits wherever the profile is centred)
-            e_c, c_c, _ = _edge_offsets(linear[..., :3], points[~use_luma], normals[~use_luma], colour_half_width,
-                                        min_contrast, step, compressed=True)
-            area = np.sum((q[:, 1:] + q[:, :-1]) * 0.5, axis=1) * step
-            e, reach = area - half_width, np.full(len(q), float(half_width))
-            e[~use_luma], contrast[~use_luma], reach[~use_luma] = e_c, c_c, colour_half_width
-            return e, contrast, reach
     area = np.sum((q[:, 1:] + q[:, :-1]) * 0.5, axis=1) * step
     if len(q) and luma is None and not compressed:  # (JPEG: its ringing overshoots on both sides, and cancels)
         hi = 1.0 if np.median(q.max(axis=1)) > 1.0 + _OVERSHOOT else np.inf
@@ -1412,7 +1402,15 @@ def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25, 
             qp = np.where(use_chroma[:, None, None], per[0], per[1])
             q = np.sum(wts * np.clip(qp, lo, hi), axis=2)
             area = np.sum((q[:, 1:] + q[:, :-1]) * 0.5, axis=1) * step
-    return area - half_width, contrast, np.full(len(area), float(half_width))
+    e, reach = area - half_width, np.full(len(area), float(half_width))
+    if luma is not None and colour_half_width is not None and colour_half_width > half_width and not use_luma.all():
+        # colour alone: read over a profile that reaches the chroma's levels, which a profile of
+        # ±half_width can fall short of (then the edge sits wherever the profile is centred)
+        colour = ~use_luma
+        e[colour], contrast[colour], _ = _edge_offsets(linear[..., :3], points[colour], normals[colour],
+                                                       colour_half_width, min_contrast, step, compressed=True)
+        reach[colour] = colour_half_width
+    return e, contrast, reach
 
 
 _ONE_PHASE = 0.9
