@@ -2115,7 +2115,8 @@ def silhouette(
     edge but noise or compression artefacts along the blob's border, and is dropped (its gap is
     still reported: it says a side face shows). A gap of about 0 says no distinct side face shows:
     none is seen, or one lit like the front face merges with it (`depth.estimate` fits such a side
-    as the cube's outer contour).
+    as the cube's outer contour). In a JPEG image (`channels` "luma"), where the blob's colour is
+    smeared beyond the cube, the boundary is read on luma only (`_luma_boundary`).
     """
     image = _check_image(image)
     h, w = image.shape[:2]
@@ -2158,18 +2159,60 @@ def _blob_boundary(image, blob_mask, lines, axis, sign, half_width, min_contrast
     start[:, axis] = outer[has] + 0.5 * sign  # the pixel boundary, outward
     start[:, 1 - axis] = lines[has]
     size = (w, h)[axis]
-    start = start[(start[:, axis] - half_width >= 0) & (start[:, axis] + half_width <= size - 1)]
+    luma = channels == "luma"  # a JPEG image: the blob's boundary is its chroma's, smeared outward
+    margin = half_width + (JPEG_CHROMA_REACH_PX + 1.0 if luma else 0.0)
+    start = start[(start[:, axis] - margin >= 0) & (start[:, axis] + margin <= size - 1)]
     if not len(start):
         return start
     normal = np.zeros_like(start)
     normal[:, axis] = sign
-    lo = np.array([4, 4]) * (np.arange(2) == axis) + (np.arange(2) != axis)  # reach: 4 px across, 1 along
+    across = 4 + (2 * JPEG_CHROMA_REACH_PX + 1 if luma else 0)  # the profiles' reach across, px (1 along)
+    lo = np.array([across, across]) * (np.arange(2) == axis) + (np.arange(2) != axis)
     x0, y0 = np.maximum(np.floor(start.min(axis=0) - lo).astype(int), 0)
     x1, y1 = np.minimum(np.floor(start.max(axis=0) + lo + 1).astype(int), (w, h))
     linear = _edge_image(image[y0:y1, x0:x1], channels)
+    if luma:
+        return _luma_boundary(linear, start - [x0, y0], normal, half_width, min_contrast) + [x0, y0]
     e, contrast, _ = _edge_offsets(linear, start - [x0, y0], normal, half_width, min_contrast)
     good = (contrast >= min_contrast) & (np.abs(e) <= half_width - 0.5)
     return start[good] + e[good, None] * normal[good]
+
+
+JPEG_SILHOUETTE_AGREE_PX = 1.0
+"""In a JPEG image, a silhouette point found on luma is kept only where the colour, read over the
+chroma's reach (`JPEG_CHROMA_REACH_PX`), places the edge within this of it or shows none (`_luma_boundary`)."""
+
+
+def _luma_boundary(linear, start, normal, half_width, min_contrast) -> np.ndarray:
+    """`_blob_boundary` in a JPEG image (`linear`: `_edge_image(..., "luma")`, `start`: (N, 2) the blob's
+    outer pixel boundaries in its coordinates, `normal`: outward): the sub-pixel silhouette points (M, 2).
+
+    The blob is found on colour, whose chroma JPEG stores at half resolution and the decoder spreads
+    up to `JPEG_CHROMA_REACH_PX` beyond the object, so the blob's boundary can lie that far outside
+    the silhouette (beside a purple face on a checker floor, 2–4 px). Luma keeps the silhouette where
+    it is: each point is moved to the outermost clear luma step (at least half the largest) between
+    a pixel past that reach inside the boundary and a pixel outside it, and its edge is read on luma there. A point
+    whose luma shows no edge (a floor tile of the cube's luma) is dropped, not read on the smeared
+    chroma; so is one whose colour, read over the chroma's reach, places the edge more than
+    `JPEG_SILHOUETTE_AGREE_PX` from the luma's: a step of the background's texture beyond the
+    silhouette (the edge of a floor tile) is no edge of the cube's colour.
+    """
+    reach = JPEG_CHROMA_REACH_PX
+    offsets = np.arange(-reach - 1.5, 1.0, 1.0)  # pixel centres from past `reach` inside to 1 px outside
+    at = np.rint(start[:, None, :] + offsets[None, :, None] * normal[:, None, :]).astype(int)
+    steps = np.abs(np.diff(linear[at[..., 1], at[..., 0], 3], axis=1))  # between neighbouring pixels
+    largest = steps.max(axis=1)
+    clear = steps >= 0.5 * largest[:, None]
+    outermost = steps.shape[1] - 1 - np.argmax(clear[:, ::-1], axis=1)
+    shift = np.where(largest >= min_contrast, offsets[outermost] + 0.5, 0.0)
+    centre = start + shift[:, None] * normal
+    e, _, _ = _edge_offsets(linear, centre, normal, half_width, min_contrast)
+    y = _profiles(linear[..., 3:], centre, normal, half_width, 0.25)[..., 0]
+    on_luma = np.abs(_along_side(y[:, 0]) - _along_side(y[:, -1])) >= min_contrast
+    e_colour, c_colour, _ = _edge_offsets(linear[..., :3], centre, normal, reach, min_contrast, compressed=True)
+    agree = (c_colour < min_contrast) | (np.abs(e_colour - e) <= JPEG_SILHOUETTE_AGREE_PX)
+    good = on_luma & agree & (np.abs(e) <= half_width - 0.5)
+    return centre[good] + e[good, None] * normal[good]
 
 
 def _top_bottom_gaps(image, blob_mask, outline, margin_frac, half_width, min_contrast, channels):

@@ -965,6 +965,58 @@ def test_silhouette_gap_above_a_top_face_strip():
     assert abs(gaps[2] - 3.0) < 0.2 and np.all(np.abs(gaps[[0, 1, 3]]) < 0.1)
 
 
+def banded_purple_face(side=None, side_width=0.0):
+    """A purple face 16.5 px wide on horizontal bands 6 px tall, alternately a grey of the face's luma Y'
+    (only the chroma shows the face's sides there) and a light grey: a purple cube on the reconstruct
+    bench's checker floor (JPEG s18/0). The image, its JPEG and the face."""
+    y_grey = linear_to_srgb(np.array(0.35))
+    purple = np.array([0.7, 0.0, 0.8])
+    purple[1] = (y_grey - 0.299 * purple[0] - 0.114 * purple[2]) / 0.587  # sRGB, the dark bands' luma Y'
+    face = FakeCube((60.3, 40.6), (76.8, 41.2), (77.5, 150.2), (61.1, 149.1), albedo=tuple(srgb_to_linear(purple)),
+                    front_shade=1.0, side_shade=0.4, side=side, side_width=side_width)
+    image, _ = make_image((200, 140), [face], background="grey", decoy=False)
+    v = np.arange(200.0)[:, None] + np.zeros(140)
+    cube = pixel_truth(image.shape[:2], face, "face") | pixel_truth(image.shape[:2], face, "strip")
+    image[~cube & (v // 6 % 2 == 1)] = linear_to_srgb(np.array(0.8))
+    return image, jpeg(image), face
+
+
+@pytest.mark.parametrize("smear_px", [0, 1, 2, 3])
+def test_a_jpeg_silhouette_is_read_on_luma_not_on_the_smeared_chroma(smear_px):
+    """JPEG spreads a face's chroma up to 3 px beyond it, and a blob found on colour reaches that far
+    (`smear_px` on each side here). The silhouette read at the blob's boundary then fell on the smear:
+    gaps of 1–2.3 px beside a face with no side face, which `depth.estimate` reads as distinct side
+    faces (JPEG s18/0: 69.8 % off). Read on the luma step within the chroma's reach, dropping the
+    points where only chroma shows the edge, the gaps are within 0.25 px of 0."""
+    image, compressed, face = banded_purple_face()
+    mask = pixel_truth(image.shape[:2], face, "face")
+    outline = face_outline(compressed, mask, channels="luma", thin_strips=False)
+    assert outline, outline
+    blob = mask.copy()
+    for k in range(1, smear_px + 1):
+        blob[:, k:] |= mask[:, :-k]
+        blob[:, :-k] |= mask[:, k:]
+    sil = silhouette(compressed, blob, outline, channels="luma")
+    assert np.all(np.abs(sil.gaps_px[:2]) <= 0.25), sil.gaps_px
+    assert sil.sides == (None, None)
+
+
+def test_a_jpeg_silhouette_still_finds_a_side_face_and_its_back_edge():
+    """The same face with a side face 4.5 px wide on its left, darker: the luma steps twice, and the
+    outermost step is the silhouette, 4.5 px out, with the back edge's points along it."""
+    image, compressed, face = banded_purple_face(side="left", side_width=4.5)
+    mask = pixel_truth(image.shape[:2], face, "face")
+    outline = face_outline(compressed, mask, channels="luma", thin_strips=False)
+    assert outline, outline
+    blob = mask | pixel_truth(image.shape[:2], face, "strip")
+    blob[:, :-2] |= blob[:, 2:].copy()  # the chroma's smear
+    sil = silhouette(compressed, blob, outline, channels="luma")
+    assert abs(sil.gaps_px[0] - 4.5) <= 0.25 and abs(sil.gaps_px[1]) <= 0.25, sil.gaps_px
+    left = sil.sides[0]
+    assert left is not None and len(left) >= 40
+    assert np.median(np.abs(left[:, 0] - (face.left(left[:, 1]) - 4.5))) <= 0.25
+
+
 def test_outline_tells_a_blurred_image_by_its_edge_width():
     from scipy import ndimage
     cubes = three_cubes()
