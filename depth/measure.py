@@ -2185,10 +2185,10 @@ def _luma_boundary(linear, start, normal, half_width, min_contrast) -> np.ndarra
     The blob is found on colour, whose chroma JPEG stores at half resolution and the decoder spreads
     up to `JPEG_CHROMA_REACH_PX` beyond the object, so the blob's boundary can lie that far outside
     the silhouette (beside a purple face on a checker floor, 2–4 px). Luma keeps the silhouette where
-    it is: each point is moved to the outermost clear luma step (at least half the largest) between
-    a pixel past that reach inside the boundary and a pixel outside it, and its edge is read on luma there. A point
-    whose luma shows no edge (a floor tile of the cube's luma) is dropped, not read on the smeared
-    chroma. (Also requiring the colour, read over the chroma's reach, to place the edge within 1 px
+    it is: each point is moved to the outermost clear luma step (at least half the largest) between a
+    pixel past that reach inside the boundary and a pixel outside it, and its edge is read on luma
+    there. A point whose luma shows no edge (a floor tile of the cube's luma) is dropped, not read on
+    the smeared chroma. (Also requiring the colour, read over the chroma's reach, to place the edge within 1 px
     of the luma's, against floor-tile edges beyond the silhouette, read the bench's JPEG gaps closer
     to the clean images' but put s02/1 2.1 % off, not 1.1 %, and s18/0 2.5 %, not 0.25 %.)
     """
