@@ -2188,9 +2188,9 @@ def _luma_boundary(linear, start, normal, half_width, min_contrast) -> np.ndarra
     it is: each point is moved to the outermost clear luma step (at least half the largest) between a
     pixel past that reach inside the boundary and a pixel outside it, and its edge is read on luma
     there. A point whose luma shows no edge (a floor tile of the cube's luma) is dropped, not read on
-    the smeared chroma. (Also requiring the colour, read over the chroma's reach, to place the edge within 1 px
-    of the luma's, against floor-tile edges beyond the silhouette, read the bench's JPEG gaps closer
-    to the clean images' but put s02/1 2.1 % off, not 1.1 %, and s18/0 2.5 %, not 0.25 %.)
+    the smeared chroma. (Also requiring the colour, read over the chroma's reach, to place the edge
+    within 1 px of the luma's, against floor-tile edges beyond the silhouette, read the bench's JPEG
+    gaps closer to the clean images' but put s02/1 2.1 % off, not 1.1 %, and s18/0 2.5 %, not 0.25 %.)
     """
     reach = JPEG_CHROMA_REACH_PX
     offsets = np.arange(-reach - 1.5, 1.0, 1.0)  # pixel centres from past `reach` inside to 1 px outside
