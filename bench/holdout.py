@@ -1,13 +1,15 @@
-"""Held-out renders: `python -m bench.holdout SEED [--grey]` (SEED 8080, 9090 or 7070 as in bench/README.md).
+"""Held-out renders: `python -m bench.holdout SEED [--grey] [--jpeg]` (SEED 8080, 9090 or 7070 as in bench/README.md).
 
 Eight scenes no bench tunes on (`make_scenes(8, seed=SEED)`), rendered by Mitsuba 3 (16 spp) standing
 on a floor (albedo drawn per scene) under the lighting bench's sky map and a sun from a direction and
 of a strength drawn from `default_rng(SEED + 7)`; the odd scenes' cubes painted grey, white or black
-(`bench_lighting.greyed`), or every scene's with --grey. `exact` on each; per cube the centre error
+(`bench_lighting.greyed`), or every scene's with --grey; with --jpeg each render is put through OpenCV's
+JPEG coder at quality 90 (the reconstruct bench's JPEG variant) and reconstructed as compressed: JPEG
+images no JPEG change was tuned on. `exact` on each; per cube the centre error
 ‖ĉ − c‖ / (distance of c to the axis) in %, the depth error in reported σ, the turn and the edge
 misfit, the refusals, then recall, false positives and the error median / 90th percentile / max.
 Not part of `make bench` (the first run renders for about 5 min on 2 cores; renders are cached in
-bench/out/renders/, and the results written to bench/out/holdout-SEED[-grey].json).
+bench/out/renders/, and the results written to bench/out/holdout-SEED[-grey][-jpeg].json).
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ import numpy as np
 def main(argv=None) -> int:
     from bench import mitsuba_scenes as ms
     from bench.bench_lighting import greyed, match, mitsuba_cached, sky_map
-    from bench.bench_reconstruct import OUT
+    from bench.bench_reconstruct import OUT, variant
     from bench.scenes import make_scenes
     from depth.reconstruct import reconstruct
     from raytrace.truth import cube_truth
@@ -29,10 +31,10 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     args = [a for a in argv if not a.startswith("--")]
     if len(args) != 1 or not args[0].isdigit():
-        print("usage: python -m bench.holdout SEED [--grey]   (SEED: a whole number, e.g. 8080 or 9090)",
+        print("usage: python -m bench.holdout SEED [--grey] [--jpeg]   (SEED: a whole number, e.g. 8080 or 9090)",
               file=sys.stderr)
         return 2
-    seed, all_grey = int(args[0]), "--grey" in argv
+    seed, all_grey, jpeg = int(args[0]), "--grey" in argv, "--jpeg" in argv
     if not ms.mitsuba_available():
         print("bench.holdout: Mitsuba 3 is not installed (pip install -e '.[bench]'); skipped")
         return 0
@@ -45,8 +47,10 @@ def main(argv=None) -> int:
         setup = greyed(sc.setup) if grey else sc.setup
         img = mitsuba_cached(setup, f"holdout{seed}-floor{albedo}-{travel}-{sun}", "holdout", travel, sun, 0.0,
                              sky_map=sky_map(), floor_albedo=albedo)
+        if jpeg:
+            img = variant(img, "jpeg", seed=0)
         cam, mir = setup.camera.build(), setup.mirror.build()
-        rec = reconstruct(img, cam, mir)
+        rec = reconstruct(img, cam, mir, compressed=jpeg)
         truth = [cube_truth(cam, mir, c.build()) for c in setup.objects]
         pairs, extra = match(rec.cubes, truth)
         fps += [{"scene": i, "at_px": np.round(np.mean(cube.corners_px, axis=0), 1).tolist()} for cube in extra]
@@ -66,12 +70,12 @@ def main(argv=None) -> int:
             print(f"      refused {r.bbox}: {r.reason}")
     e = np.array([v["centre_err_pct"] for v in res.values() if v])
     z = np.abs([v["depth_sigmas"] for v in res.values() if v])
-    print(f"holdout {seed}{' (all grey)' if all_grey else ''}: found {len(e)} of {len(res)}, {len(fps)} false "
+    print(f"holdout {seed}{' (all grey)' if all_grey else ''}{' (JPEG)' if jpeg else ''}: found {len(e)} of {len(res)}, {len(fps)} false "
           f"positives; centre error median {np.median(e):.2f} %, 90th pct {np.percentile(e, 90):.2f} %, max "
           f"{e.max():.1f} %; depth within 1 / 2 / 3 σ {100 * np.mean(z <= 1):.0f} / {100 * np.mean(z <= 2):.0f} / "
           f"{100 * np.mean(z <= 3):.0f} %")
     OUT.mkdir(parents=True, exist_ok=True)
-    path = OUT / f"holdout-{seed}{'-grey' if all_grey else ''}.json"
+    path = OUT / f"holdout-{seed}{'-grey' if all_grey else ''}{'-jpeg' if jpeg else ''}.json"
     path.write_text(json.dumps({"cubes": res, "false_positives": fps}, indent=1) + "\n")
     return 0
 
