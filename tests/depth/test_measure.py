@@ -23,6 +23,7 @@ from depth.measure import (
     FailedMeasurement,
     detect_cubes,
     face_outline,
+    faint_regrowth,
     same_material_faces,
     silhouette,
     silhouette_sides,
@@ -126,6 +127,8 @@ def make_image(shape, cubes, mirror=None, background="checker", noise=0.0, seed=
         sky = 0.5 * (1.0 + 0.4 * np.sin(2.0 * np.pi * u / 90.0))[..., None] * np.array([0.9, 0.95, 1.0])
         floor = v > 0.86 * h + 5.0 * np.sin(2.0 * np.pi * u / 70.0)
         img[:] = np.where(floor[..., None], np.array([0.2, 0.2, 0.24]), sky)
+    elif background == "ramp":  # a sky shading gently (+30 % across the image), slightly blue
+        img[:] = (0.45 * (1.0 + 0.3 * u / w))[..., None] * np.array([0.95, 0.97, 1.0])
     else:
         img[:] = 0.35
     for c in cubes:
@@ -311,6 +314,60 @@ def test_grey_cubes_are_not_looked_for_on_a_checkered_background():
     detections = detect_cubes(image, mirror)
     assert len(detections) == 1
     assert match(detections, cubes[1:2])[0].usable
+
+
+def faint_white_cube(front_shade):
+    """A white cube's front face (24 px × 109 px) with a dark side face 6 px wide on its right, before
+    a sky shading gently ("ramp"): at `front_shade` 0.44 or 0.56 its face differs from the sky behind
+    it (linear 0.49–0.51) by 0.03–0.05 in sRGB, under the weak step `_enclosed` traces edges at."""
+    return FakeCube((100.3, 40.6), (124.8, 41.4), (125.5, 150.2), (101.1, 149.1), top_sag=1.5, bottom_sag=2.0,
+                    albedo=(1.0, 1.0, 1.0), front_shade=front_shade, side="right", side_width=6.0, side_shade=0.25)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("front_shade", [0.44, 0.56, 0.58])
+def test_a_white_face_as_bright_as_the_sky_is_found_by_regrowing_its_dark_side_face(front_shade, seed):
+    """Detection finds only the dark side face of a white cube whose front face is nearly as bright as
+    the sky behind it (holdout 7070 s1/4 and s3/3, 9090 s3/3 and s7/0 were missed so). `faint_regrowth`
+    grows that blob across the faint edges to the whole cube: the front face's mask within IoU 0.9 of
+    the truth, the side face in the blob, and the detection usable and achromatic."""
+    cube = faint_white_cube(front_shade)
+    image, mirror = make_image((200, 240), [cube], background="ramp", noise=2 / 255, seed=seed)
+    face = pixel_truth(image.shape[:2], cube, "face")
+    strip = pixel_truth(image.shape[:2], cube, "strip")
+    (found,) = detect_cubes(image, mirror)
+    assert (found.mask & face).sum() < 0.1 * face.sum()  # the case: only the side face was found
+    grown = faint_regrowth(image, mirror, found)
+    assert grown is not None and grown.usable and grown.achromatic
+    iou = (grown.front_face_mask & face).sum() / (grown.front_face_mask | face).sum()
+    assert iou > 0.9
+    assert (grown.mask & strip).sum() > 0.9 * strip.sum()
+    assert (grown.front_face_mask & strip).sum() < 0.1 * strip.sum()
+
+
+def test_regrowth_leaves_a_whole_cube_and_a_face_with_no_edge_alone():
+    """Where the blob is already the whole cube (a red cube), or the front face has the sky's own
+    colour (no edge at all to grow across), `faint_regrowth` gives None: nothing grows by 20 %."""
+    red = dataclasses.replace(faint_white_cube(0.56), albedo=COLOURS["red"], front_shade=0.7)
+    image, mirror = make_image((200, 240), [red], background="ramp", noise=2 / 255)
+    (found,) = detect_cubes(image, mirror)
+    assert found.usable and faint_regrowth(image, mirror, found) is None
+    # the sky behind the face: linear 0.45 × (1 + 0.3 u / 240) × (0.95, 0.97, 1.0), u ≈ 113
+    sky = 0.45 * (1.0 + 0.3 * 113.0 / 240.0) * np.array([0.95, 0.97, 1.0])
+    hidden = dataclasses.replace(faint_white_cube(1.0), albedo=tuple(sky))
+    image, mirror = make_image((200, 240), [hidden], background="ramp", noise=2 / 255)
+    (found,) = detect_cubes(image, mirror)
+    assert faint_regrowth(image, mirror, found) is None
+
+
+def test_regrowth_that_leaks_into_a_shading_sky_is_refused():
+    """A sky shading ±40 % over 90 px has ramps whose noise gives edges everywhere at the faint steps;
+    the region grown there reaches the window's rim, and `faint_regrowth` gives None rather than a
+    blob of sky."""
+    image, mirror = make_image((200, 240), [faint_white_cube(0.56)], background="sky", noise=2 / 255)
+    (found,) = detect_cubes(image, mirror)
+    assert found.bbox[2] - found.bbox[0] < 10  # the side face alone
+    assert faint_regrowth(image, mirror, found) is None
 
 
 def test_front_face_is_separated_from_side_and_top_strips():
