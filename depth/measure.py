@@ -321,16 +321,17 @@ def _reaching_rim(mask: np.ndarray, search: np.ndarray, connectivity: int) -> np
 
 
 def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_share: float,
-              contrast: tuple[float, float] = ENCLOSING_EDGE_CONTRAST, close_px: int = 3):
+              contrast: tuple[float, float] = ENCLOSING_EDGE_CONTRAST, close_px: int = 3, sigma: float = 1.0):
     """(background pixels, seed pixels, edge pixels) of a background of no one colour, else None.
 
     A sky reflected in a cylinder shades smoothly across the mirror and meets the floor at a
     horizon; objects are bounded by steps. Edges are Canny's on the channel of the largest
-    gradient (`contrast`: weak, strong), thickened to `close_px` to close gaps at corners; the
+    gradient (`contrast`: weak, strong) after a Gaussian blur of `sigma` px, thickened to `close_px` to
+    close gaps at corners; the
     background is every region between them that reaches the edge of the mirror region (an object
     reaching it would be cut anyway), kept only where it holds `background_share` of `rest` (a
     checkered ground's cells are enclosed each). Every enclosed pixel is a seed."""
-    u8 = cv2.GaussianBlur(cv2.convertScaleAbs(rgb, alpha=255.0), (0, 0), 1.0)  # rounds and saturates
+    u8 = cv2.GaussianBlur(cv2.convertScaleAbs(rgb, alpha=255.0), (0, 0), sigma)  # rounds and saturates
     dx, dy = cv2.Sobel(u8, cv2.CV_16S, 1, 0), cv2.Sobel(u8, cv2.CV_16S, 0, 1)
     k = np.argmax(np.abs(dx) + np.abs(dy), axis=2)[..., None]  # each at most 4 × 255: int16 holds the sum
     dx = np.ascontiguousarray(np.take_along_axis(dx, k, axis=2)[..., 0])
@@ -443,16 +444,24 @@ light grey front face in front of a background of nearly its brightness differs 
 in one channel (holdout 7070 s1/4 and s3/3: the floor or the sky 4–12 levels of 255 away), under that
 bench's weak step, so that only the cube's darker side face was found."""
 
+FAINT_EDGE_SMOOTHING_PX = (1.0, 1.5)
+"""Gaussian blurs (px) before `faint_regrowth`'s edges, tried in turn. A path tracer's grey face is noisy:
+16 samples a pixel left a light grey face 0.017 of sRGB value from pixel to pixel (holdout 9090 s3/1,
+0.06 below the sky behind it), whose noise, blurred over 1 px, made edges inside it at the faint steps
+that cut it into pieces, some reaching the background through the gaps in its own edge; blurred over
+1.5 px the face comes out whole."""
+
 
 def faint_regrowth(image: np.ndarray, mirror_mask: np.ndarray, detection: CubeDetection, *,
                    min_face_contrast: float = 0.03, edge_margin_px: int = 2,
-                   compressed: bool = False) -> CubeDetection | None:
+                   compressed: bool = False, smoothing_px: float = FAINT_EDGE_SMOOTHING_PX[0]) -> CubeDetection | None:
     """An achromatic `detection` grown across faint edges, or None where it does not grow.
 
     Where a white or grey cube stands before a background of nearly its brightness, detection finds
     only the faces that differ from it (a darker side face), and no cube's front face explains that
     blob. Here edges are looked for again in a window about the blob, `pad` = half its larger extent
-    (at least 20 px) on each side, at `FAINT_EDGE_CONTRAST`, thickened to 5 px (the corners of faint
+    (at least 20 px) on each side, at `FAINT_EDGE_CONTRAST` after a blur of `smoothing_px` (one of
+    `FAINT_EDGE_SMOOTHING_PX`, which `depth.reconstruct` tries in turn), thickened to 5 px (the corners of faint
     faces leave wider gaps), as `_enclosed` does over the mirror. The grown blob is the blob with the
     regions that the background (the window's part reaching its rim) leaves about it and that share 10
     or more pixels with it, holes filled (edges of noise inside a face) and closed (7 px). None where
@@ -471,7 +480,7 @@ def faint_regrowth(image: np.ndarray, mirror_mask: np.ndarray, detection: CubeDe
     search = cv2.erode(inside.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     search[[0, -1], :] = False  # the window's rim is the rim of the search
     search[:, [0, -1]] = False
-    found = _enclosed(rgb, search, search, 0.5, FAINT_EDGE_CONTRAST, 5)
+    found = _enclosed(rgb, search, search, 0.5, FAINT_EDGE_CONTRAST, 5, smoothing_px)
     if found is None:
         return None
     blob = detection.mask[win]

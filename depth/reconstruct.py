@@ -296,8 +296,8 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         `depth.workers.fork_map`); default: every available core. The results do not depend on it.
     """
     from raytrace.truth import mirror_mask, mirror_rays
-    from depth.measure import (BLUR_DOMAINS, blur_domain_verdict, detect_cubes, extended_to_blob, face_outline,
-                               faint_regrowth, same_material_faces)
+    from depth.measure import (BLUR_DOMAINS, FAINT_EDGE_SMOOTHING_PX, blur_domain_verdict, detect_cubes,
+                               extended_to_blob, face_outline, faint_regrowth, same_material_faces)
 
     if method not in ALL_METHODS:
         raise DepthError(f"method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
@@ -343,12 +343,14 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
 
     def regrown(det):
         """An achromatic detection grown across faint edges (`faint_regrowth`), usable and touching no
-        other blob, or None."""
-        grown = faint_regrowth(det_img, mask, det, compressed=compressed)
-        if grown is None or grown.reason:
-            return None
-        ring = cv2.dilate(grown.mask.view(np.uint8), np.ones((5, 5), np.uint8)).view(bool)
-        return None if (ring & blobs & ~det.mask).any() else grown
+        other blob: each such reading, one per blur of `FAINT_EDGE_SMOOTHING_PX` in turn."""
+        for smoothing in FAINT_EDGE_SMOOTHING_PX:
+            grown = faint_regrowth(det_img, mask, det, compressed=compressed, smoothing_px=smoothing)
+            if grown is None or grown.reason:
+                continue
+            ring = cv2.dilate(grown.mask.view(np.uint8), np.ones((5, 5), np.uint8)).view(bool)
+            if not (ring & blobs & ~det.mask).any():
+                yield grown
 
     def outlined(i):
         """Detection i's front face outlined: (face pixels (N, 2) (u, v), outline, channels, its
@@ -358,10 +360,10 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         det = detections[i]
         outcome = outline_detection(det)
         if isinstance(outcome, str) and det.achromatic and not (det.reason or det.cut_by_mirror_edge or det.occluded):
-            grown = regrown(det)
-            again = None if grown is None else outline_detection(grown)
-            if again is not None and not isinstance(again, str):
-                return again + (grown,)
+            for grown in regrown(det):
+                again = outline_detection(grown)
+                if not isinstance(again, str):
+                    return again + (grown,)
         return outcome if isinstance(outcome, str) else outcome + (det,)
 
     def outline_detection(det):
@@ -482,15 +484,16 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             # A white or grey cube before a background of nearly its brightness: only its darker faces
             # were found, and no cube's front face explains them. The blob grown across faint edges
             # (`faint_regrowth`), where it touches no other blob, is the other reading.
-            grown = regrown(sources[k][0])
-            if grown is not None:
+            for grown in regrown(sources[k][0]):
                 out = outline_detection(grown)
-                if not isinstance(out, str):
-                    _, other, _, other_meas = out
-                    other_meas = replace(other_meas, blob_mask=grown.mask)
-                    other_est = estimate_face(rays, other_meas, method=method, cube_size=cube_size, up=up)
-                    if verdict(k, other_est, other_meas) is None:
-                        est, outline, reason, bbox = other_est, other, None, grown.bbox
+                if isinstance(out, str):
+                    continue
+                _, other, _, other_meas = out
+                other_meas = replace(other_meas, blob_mask=grown.mask)
+                other_est = estimate_face(rays, other_meas, method=method, cube_size=cube_size, up=up)
+                if verdict(k, other_est, other_meas) is None:
+                    est, outline, reason, bbox = other_est, other, None, grown.bbox
+                    break
         return est, outline, reason, bbox
 
     if method == "shape_prior":
