@@ -461,43 +461,57 @@ def faint_regrowth(image: np.ndarray, mirror_mask: np.ndarray, detection: CubeDe
     only the faces that differ from it (a darker side face), and no cube's front face explains that
     blob. Here edges are looked for again in a window about the blob, `pad` = half its larger extent
     (at least 20 px) on each side, at `FAINT_EDGE_CONTRAST` after a blur of `smoothing_px` (one of
-    `FAINT_EDGE_SMOOTHING_PX`, which `depth.reconstruct` tries in turn), thickened to 5 px (the corners of faint
-    faces leave wider gaps), as `_enclosed` does over the mirror. The grown blob is the blob with the
-    regions that the background (the window's part reaching its rim) leaves about it and that share 10
-    or more pixels with it, holes filled (edges of noise inside a face) and closed (7 px). None where
-    it exceeds the blob by under 20 % or reaches within 3 px of the window's rim (it leaked into the
-    background). The faces are split as `detect_cubes` does; the detection returned is achromatic,
-    with `reason` set where it is cut by the mirror's edge or its faces cannot be separated.
+    `FAINT_EDGE_SMOOTHING_PX`, which `depth.reconstruct` tries in turn), thickened to 5 px (the
+    corners of faint faces leave wider gaps), as `_enclosed` does over the mirror. The grown blob is
+    the blob with the regions that the background (the window's part reaching its rim) leaves about
+    it and that share 10 or more pixels with it, holes filled (edges of noise inside a face) and
+    closed (7 px). Nothing where it exceeds the blob by under 20 % or reaches within 3 px of the
+    window's rim (it leaked into the background); then once more with `pad` 4 × as wide, or 16 × the
+    blob's smaller extent (a white cube found as its bottom face, 13 px tall, whose front face stands
+    100 px above it, reached the first window's rim and was taken for background there). The faces
+    are split as `detect_cubes` does; the detection returned is achromatic, with `reason` set where
+    it is cut by the mirror's edge or its faces cannot be separated.
     """
     image = _check_image(image)
     height, width = image.shape[:2]
     x0, y0, x1, y1 = detection.bbox
-    pad = max(20, max(x1 - x0, y1 - y0) // 2)
-    wy0, wy1, wx0, wx1 = max(y0 - pad, 0), min(y1 + pad, height), max(x0 - pad, 0), min(x1 + pad, width)
-    win = (slice(wy0, wy1), slice(wx0, wx1))
+
+    def grown_in(pad):
+        """(grown blob, window, mirror mask in it) in the window `pad` px about the blob, or None where it
+        does not grow or reaches the window's rim."""
+        wy0, wy1, wx0, wx1 = max(y0 - pad, 0), min(y1 + pad, height), max(x0 - pad, 0), min(x1 + pad, width)
+        win = (slice(wy0, wy1), slice(wx0, wx1))
+        inside = np.asarray(mirror_mask, dtype=bool)[win]
+        search = cv2.erode(inside.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+        search[[0, -1], :] = False  # the window's rim is the rim of the search
+        search[:, [0, -1]] = False
+        found = _enclosed(image[win], search, search, 0.5, FAINT_EDGE_CONTRAST, 5, smoothing_px)
+        if found is None:
+            return None
+        blob = detection.mask[win]
+        n_lab, labels = cv2.connectedComponents(ndimage.binary_fill_holes(search & ~found[0]).astype(np.uint8),
+                                                connectivity=8)
+        ids, counts = np.unique(labels[blob], return_counts=True)
+        touching = np.zeros(n_lab, dtype=bool)
+        touching[ids[counts >= 10]] = True
+        touching[0] = False
+        grown = touching[labels] | blob
+        # notches where the faint edge's band was taken for background, closed
+        grown = ndimage.binary_fill_holes(cv2.morphologyEx(grown.view(np.uint8), cv2.MORPH_CLOSE,
+                                                           cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))))
+        if grown.sum() < 1.2 * blob.sum():
+            return None
+        rim = np.ones(grown.shape, dtype=bool)
+        rim[3:-3, 3:-3] = False
+        return None if (grown & rim).any() else (grown, win, inside)
+
+    first = max(20, max(x1 - x0, y1 - y0) // 2)
+    out = grown_in(first) or grown_in(max(4 * first, 16 * min(x1 - x0, y1 - y0)))
+    if out is None:
+        return None
+    grown, win, inside = out
     rgb = image[win]
-    inside = np.asarray(mirror_mask, dtype=bool)[win]
-    search = cv2.erode(inside.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
-    search[[0, -1], :] = False  # the window's rim is the rim of the search
-    search[:, [0, -1]] = False
-    found = _enclosed(rgb, search, search, 0.5, FAINT_EDGE_CONTRAST, 5, smoothing_px)
-    if found is None:
-        return None
-    blob = detection.mask[win]
-    n_lab, labels = cv2.connectedComponents(ndimage.binary_fill_holes(search & ~found[0]).astype(np.uint8),
-                                            connectivity=8)
-    ids, counts = np.unique(labels[blob], return_counts=True)
-    touching = np.zeros(n_lab, dtype=bool)
-    touching[ids[counts >= 10]] = True
-    touching[0] = False
-    grown = touching[labels] | blob
-    # notches where the faint edge's band was taken for background, closed
-    grown = ndimage.binary_fill_holes(cv2.morphologyEx(grown.view(np.uint8), cv2.MORPH_CLOSE,
-                                                       cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))))
-    rim = np.ones(grown.shape, dtype=bool)
-    rim[3:-3, 3:-3] = False
-    if grown.sum() < 1.2 * blob.sum() or (grown & rim).any():
-        return None
+    wy0, wx0 = win[0].start, win[1].start
     rows, cols = np.flatnonzero(grown.any(axis=1)), np.flatnonzero(grown.any(axis=0))
     sl = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
     local = grown[sl]

@@ -371,6 +371,25 @@ def test_a_grey_face_as_noisy_as_a_path_tracers_is_regrown_whole_after_a_wider_b
     assert grown is not None and grown.usable and iou(grown) > 0.9
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_white_face_found_as_its_thin_top_face_alone_is_regrown_whole(seed):
+    """A white cube whose front face (24 × 109 px) is as bright as the "ramp" sky, with a dark top face
+    13 px tall above it and no side face: detection finds the top face alone (holdout 8080 s2/0, as its
+    bottom face). The first window, 20 px about that blob, reaches 20 px into the face, which runs on
+    to the window's rim and is taken for background there; the wider window holds the whole face, and
+    the front face's mask comes out within IoU 0.9 of the truth, the top face beside it."""
+    cube = dataclasses.replace(faint_white_cube(0.56), side=None, top_height=13.0, top_shade=0.25)
+    image, mirror = make_image((200, 240), [cube], background="ramp", noise=2 / 255, seed=seed)
+    face = pixel_truth(image.shape[:2], cube, "face")
+    (found,) = detect_cubes(image, mirror)
+    assert (found.mask & face).sum() < 0.1 * face.sum() and found.bbox[3] - found.bbox[1] < 20  # the top face
+    grown = faint_regrowth(image, mirror, found)
+    assert grown is not None and grown.usable and grown.achromatic
+    iou = (grown.front_face_mask & face).sum() / (grown.front_face_mask | face).sum()
+    assert iou > 0.9
+    assert (grown.mask & found.mask).sum() > 0.9 * found.mask.sum()
+
+
 def test_regrowth_leaves_a_whole_cube_and_a_face_with_no_edge_alone():
     """Where the blob is already the whole cube (a red cube), or the front face has the sky's own
     colour (no edge at all to grow across), `faint_regrowth` gives None: nothing grows by 20 %."""
