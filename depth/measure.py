@@ -326,11 +326,11 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
 
     A sky reflected in a cylinder shades smoothly across the mirror and meets the floor at a
     horizon; objects are bounded by steps. Edges are Canny's on the channel of the largest
-    gradient (`contrast`: weak, strong) after a Gaussian blur of `sigma` px, thickened to `close_px` to
-    close gaps at corners; the
-    background is every region between them that reaches the edge of the mirror region (an object
-    reaching it would be cut anyway), kept only where it holds `background_share` of `rest` (a
-    checkered ground's cells are enclosed each). Every enclosed pixel is a seed."""
+    gradient (`contrast`: weak, strong) after a Gaussian blur of `sigma` px, thickened to `close_px`
+    to close gaps at corners; the background is every region between them that reaches the edge of
+    the mirror region (an object reaching it would be cut anyway), kept only where it holds
+    `background_share` of `rest` (a checkered ground's cells are enclosed each). Every enclosed
+    pixel is a seed."""
     u8 = cv2.GaussianBlur(cv2.convertScaleAbs(rgb, alpha=255.0), (0, 0), sigma)  # rounds and saturates
     dx, dy = cv2.Sobel(u8, cv2.CV_16S, 1, 0), cv2.Sobel(u8, cv2.CV_16S, 0, 1)
     k = np.argmax(np.abs(dx) + np.abs(dy), axis=2)[..., None]  # each at most 4 × 255: int16 holds the sum
