@@ -515,29 +515,43 @@ def faint_regrowth(image: np.ndarray, mirror_mask: np.ndarray, detection: CubeDe
     rows, cols = np.flatnonzero(grown.any(axis=1)), np.flatnonzero(grown.any(axis=0))
     sl = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
     local = grown[sl]
-    chroma, value = _chroma_value(rgb[sl])
-    front, sides, reason = _split_faces(srgb_to_linear(rgb[sl]), value, chroma, local, min_face_contrast,
-                                        stepped_cuts=compressed)
-    reasons = [reason] if reason else []
-    if not reason and front.sum() < 0.25 * local.sum():
-        reasons.append("no dominant front face: faces could not be separated")
     near_outside = cv2.dilate((~inside).astype(np.uint8), np.ones((2 * edge_margin_px + 1,) * 2, np.uint8))
     cut = bool((near_outside.astype(bool) & grown).any()) or rows[0] + wy0 == 0 or cols[0] + wx0 == 0 \
         or rows[-1] + wy0 == height - 1 or cols[-1] + wx0 == width - 1
+    chroma, value = _chroma_value(rgb[sl])
+    return _as_detection(rgb[sl], value, chroma, local, (wy0 + rows[0], wx0 + cols[0]), (height, width), cut=cut,
+                         occluded=False, achromatic=True, min_face_contrast=min_face_contrast, compressed=compressed)
+
+
+def _as_detection(rgb, value, chroma, local, origin, shape, *, cut, occluded, achromatic, min_face_contrast,
+                  compressed) -> CubeDetection:
+    """The `CubeDetection` of blob `local` ((h, w) bool) in a window of the image ((h, w, 3) sRGB `rgb`, its
+    `value` and `chroma`) whose first pixel lies at `origin` (row, col) of an image of `shape`: its faces
+    split (`_split_faces`) and the reasons not to measure it."""
+    front, sides, split_reason = _split_faces(srgb_to_linear(rgb), value, chroma, local, min_face_contrast,
+                                              stepped_cuts=compressed)
+    reasons = []
     if cut:
-        reasons.insert(0, "blob touches the edge of the mirror region (face may be cut)")
-    oy, ox = wy0 + rows[0], wx0 + cols[0]
+        reasons.append("blob touches the edge of the mirror region (face may be cut)")
+    if occluded:
+        reasons.append("blob touches another cube (occlusion)")
+    if split_reason:
+        reasons.append(split_reason)
+    elif front.sum() < 0.25 * local.sum():
+        reasons.append("no dominant front face: faces could not be separated")
+    color = np.median(rgb[front] if front.any() else rgb[local], axis=0)
+    (oy, ox), (height, width) = origin, shape
 
     def full(m):
         out = np.zeros((height, width), dtype=bool)
-        out[oy:oy + m.shape[0], ox:ox + m.shape[1]] = m
+        out[oy : oy + m.shape[0], ox : ox + m.shape[1]] = m
         return out
 
-    color = np.median(rgb[sl][front if front.any() else local], axis=0)
+    rows, cols = np.flatnonzero(local.any(axis=1)), np.flatnonzero(local.any(axis=0))
     return CubeDetection(mask=full(local), front_face_mask=full(front), side_face_masks=[full(m) for m in sides],
-                         bbox=(int(ox), int(oy), int(ox + local.shape[1]), int(oy + local.shape[0])),
-                         color=np.asarray(color, dtype=np.float64), cut_by_mirror_edge=cut,
-                         reason="; ".join(reasons) if reasons else None, achromatic=True)
+                         bbox=(int(ox + cols[0]), int(oy + rows[0]), int(ox + cols[-1] + 1), int(oy + rows[-1] + 1)),
+                         color=np.asarray(color, dtype=np.float64), cut_by_mirror_edge=cut, occluded=occluded,
+                         reason="; ".join(reasons) if reasons else None, achromatic=achromatic)
 
 
 def _circular_smooth(hist: np.ndarray, sigma: float) -> np.ndarray:
@@ -717,45 +731,9 @@ def detect_cubes(
         neighbours = np.unique(fragments[gy0:gy1, gx0:gx1][grown])
         occluded = bool(np.any((neighbours != 0) & (neighbours != own_id)))
         cut = bool(np.any(near_outside[sl][local]))
-
-        front, sides, split_reason = _split_faces(
-            srgb_to_linear(rgb[sl]), value[sl], chroma[sl], local, min_face_contrast, stepped_cuts=compressed
-        )
-        reasons = []
-        if cut:
-            reasons.append("blob touches the edge of the mirror region (face may be cut)")
-        if occluded:
-            reasons.append("blob touches another cube (occlusion)")
-        if split_reason:
-            reasons.append(split_reason)
-        elif front.sum() < 0.25 * local.sum():
-            reasons.append("no dominant front face: faces could not be separated")
-        color = np.median(rgb[sl][front], axis=0) if front.any() else np.median(rgb[sl][local], axis=0)
-
-        # Back to full-image coordinates.
-        oy, ox = r0 - pad + y, c0 - pad + x
-
-        def full(m, oy=oy, ox=ox):
-            out = np.zeros((height, width), dtype=bool)
-            out[oy : oy + m.shape[0], ox : ox + m.shape[1]] = m
-            return out
-
-        rows_b = np.flatnonzero(local.any(axis=1))
-        cols_b = np.flatnonzero(local.any(axis=0))
-        bbox = (int(ox + cols_b[0]), int(oy + rows_b[0]), int(ox + cols_b[-1] + 1), int(oy + rows_b[-1] + 1))
-        detections.append(
-            CubeDetection(
-                mask=full(local),
-                front_face_mask=full(front),
-                side_face_masks=[full(s) for s in sides],
-                bbox=bbox,
-                color=np.asarray(color, dtype=np.float64),
-                cut_by_mirror_edge=cut,
-                occluded=occluded,
-                reason="; ".join(reasons) if reasons else None,
-                achromatic=achromatic,
-            )
-        )
+        detections.append(_as_detection(rgb[sl], value[sl], chroma[sl], local, (r0 - pad + y, c0 - pad + x),
+                                        (height, width), cut=cut, occluded=occluded, achromatic=achromatic,
+                                        min_face_contrast=min_face_contrast, compressed=compressed))
     detections.sort(key=lambda d: (d.bbox[0] + d.bbox[2], d.bbox[1] + d.bbox[3]))
     return detections
 
