@@ -130,6 +130,8 @@ def make_image(shape, cubes, mirror=None, background="checker", noise=0.0, seed=
         img[:] = np.where(floor[..., None], np.array([0.2, 0.2, 0.24]), sky)
     elif background == "ramp":  # a sky shading gently (+30 % across the image), slightly blue
         img[:] = (0.45 * (1.0 + 0.3 * u / w))[..., None] * np.array([0.95, 0.97, 1.0])
+    elif background == "warm ramp":  # the same, yellowish (a sky toward the sun, a sunlit floor)
+        img[:] = (0.45 * (1.0 + 0.3 * u / w))[..., None] * np.array([1.0, 0.97, 0.9])
     else:
         img[:] = 0.35
     for c in cubes:
@@ -325,19 +327,80 @@ def faint_white_cube(front_shade):
                     albedo=(1.0, 1.0, 1.0), front_shade=front_shade, side="right", side_width=6.0, side_shade=0.25)
 
 
+def found_without(image, mirror, cube, hidden, background, noise, seed):
+    """What `detect_cubes` finds of `cube` in `image` where its pixels `hidden` show the background
+    instead (the same background and noise): the blob that detection leaves when it misses a face,
+    the input of `faint_regrowth`, whatever detection itself now finds in `image`."""
+    plain, _ = make_image(image.shape[:2], [], background=background, noise=noise, seed=seed)
+    (found,) = detect_cubes(np.where(hidden[..., None], plain, image), mirror)
+    assert (found.mask & hidden).sum() == 0
+    return found
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
-@pytest.mark.parametrize("front_shade", [0.44, 0.56, 0.58])
-def test_a_white_face_as_bright_as_the_sky_is_found_by_regrowing_its_dark_side_face(front_shade, seed):
-    """Detection finds only the dark side face of a white cube whose front face is nearly as bright as
-    the sky behind it (holdout 7070 s1/4 and s3/3, 9090 s3/3 and s7/0 were missed so). `faint_regrowth`
-    grows that blob across the faint edges to the whole cube: the front face's mask within IoU 0.9 of
-    the truth, the side face in the blob, and the detection usable and achromatic."""
+@pytest.mark.parametrize("front_shade", [0.44, 0.58])
+def test_a_white_face_a_little_darker_or_brighter_than_a_shading_sky_is_found_whole(front_shade, seed):
+    """A white cube whose front face differs from the gently shading sky behind it by 0.03–0.05 of sRGB
+    in each channel. The sky's colour departs from its median by 0.05 across the mirror, over twice what
+    a pixel departs from its neighbours, so the uniform background's noise band would be its shading's
+    and hide the face; the regions enclosed by edges are looked for instead, and detection finds the
+    whole cube: front face within IoU 0.9 of the truth, its side face beside it (before the thirty-first
+    session only the side face was found, and `faint_regrowth` had to grow it)."""
     cube = faint_white_cube(front_shade)
     image, mirror = make_image((200, 240), [cube], background="ramp", noise=2 / 255, seed=seed)
     face = pixel_truth(image.shape[:2], cube, "face")
     strip = pixel_truth(image.shape[:2], cube, "strip")
     (found,) = detect_cubes(image, mirror)
-    assert (found.mask & face).sum() < 0.1 * face.sum()  # the case: only the side face was found
+    assert found.usable and found.achromatic, found.reason
+    iou = (found.front_face_mask & face).sum() / (found.front_face_mask | face).sum()
+    assert iou > 0.9
+    assert (found.mask & strip).sum() > 0.9 * strip.sum()
+
+
+def path_traced_noise(image, where, sigma, seed):
+    """`image` with a path tracer's sampling noise on the pixels `where`: one Gaussian draw of σ
+    `sigma` per pixel added to its three channels alike (a grey or white surface's samples differ in
+    brightness, not in colour), rounded to 8 bits."""
+    out = image.copy()
+    n = np.random.default_rng(seed).normal(0.0, sigma, (int(where.sum()), 1))
+    out[where] = np.round(np.clip(out[where] + n, 0.0, 1.0) * 255.0) / 255.0
+    return out
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_white_face_lit_bluer_than_a_warm_sky_is_found_by_its_blue_yellow_edges(seed):
+    """A white cube's front face lit by the blue sky before a yellowish sky or floor lit by the sun
+    (holdout 9090 s4/0, 80 × 306 px, and s5/3 were missed so): each channel steps by 0.03 at most at its
+    sides, under the strong step `_enclosed` traces edges at, and a path tracer's noise (σ = 0.013 of
+    sRGB, the holdout faces') gives brightness edges inside it; but blue − red steps by 0.06 there, and
+    that noise cancels in it. Detection finds the face whole (IoU > 0.9)."""
+    cube = FakeCube((100.3, 40.6), (124.8, 41.4), (125.5, 150.2), (101.1, 149.1), top_sag=1.5, bottom_sag=2.0,
+                    albedo=(0.8375, 0.8505, 0.907), front_shade=0.56, side=None)
+    image, mirror = make_image((200, 240), [cube], background="warm ramp", noise=2 / 255, seed=seed)
+    plain, _ = make_image((200, 240), [], background="warm ramp")
+    face = pixel_truth(image.shape[:2], cube, "face")
+    steps = np.mean(image[face], axis=0) - np.mean(plain[face], axis=0)
+    assert np.abs(steps).max() <= 0.035 and steps[2] - steps[0] >= 0.055  # the case: a blue-yellow step
+    image = path_traced_noise(image, face, 0.013, seed)
+    found = detect_cubes(image, mirror)
+    assert len(found) == 1 and found[0].usable and found[0].achromatic, found
+    iou = (found[0].front_face_mask & face).sum() / (found[0].front_face_mask | face).sum()
+    assert iou > 0.9
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("front_shade", [0.44, 0.56, 0.58])
+def test_a_white_face_as_bright_as_the_sky_is_found_by_regrowing_its_dark_side_face(front_shade, seed):
+    """Where detection finds only the dark side face of a white cube whose front face is nearly as
+    bright as the sky behind it (holdout 7070 s1/4 and s3/3, 9090 s3/3 and s7/0 were missed so; here
+    the front face hidden from detection), `faint_regrowth` grows that blob across the faint edges to
+    the whole cube: the front face's mask within IoU 0.9 of the truth, the side face in the blob, and
+    the detection usable and achromatic."""
+    cube = faint_white_cube(front_shade)
+    image, mirror = make_image((200, 240), [cube], background="ramp", noise=2 / 255, seed=seed)
+    face = pixel_truth(image.shape[:2], cube, "face")
+    strip = pixel_truth(image.shape[:2], cube, "strip")
+    found = found_without(image, mirror, cube, face, "ramp", 2 / 255, seed)
     grown = faint_regrowth(image, mirror, found)
     assert grown is not None and grown.usable and grown.achromatic
     iou = (grown.front_face_mask & face).sum() / (grown.front_face_mask | face).sum()
@@ -360,8 +423,7 @@ def test_a_grey_face_as_noisy_as_a_path_tracers_is_regrown_whole_after_a_wider_b
     on_cube = face | pixel_truth(image.shape[:2], cube, "strip")
     noise = np.random.default_rng(100 + seed).normal(0.0, 0.02, (int(on_cube.sum()), 3))
     image[on_cube] = np.round(np.clip(image[on_cube] + noise, 0.0, 1.0) * 255.0) / 255.0
-    (found,) = detect_cubes(image, mirror)
-    assert (found.mask & face).sum() < 0.2 * face.sum()  # the case: the side face, a few face pixels
+    found = found_without(image, mirror, cube, face, "ramp", 2 / 255, seed)  # the side face alone
 
     def iou(grown):
         return 0.0 if grown is None else (grown.front_face_mask & face).sum() / (grown.front_face_mask | face).sum()
