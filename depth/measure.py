@@ -295,7 +295,7 @@ def _uniform_background(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, m
     seeds differ from it by over twice the band. Where that band is over `SHADING_RATIO` times the
     pixels' own (their colour distance to the mean of their 3 × 3 neighbours), the band is the
     background's shading, not its noise, and would hide a white cube 0.03–0.05 from the sky behind it
-    (holdout 9090 s4/0, 80 × 306 px, under a band of 0.094): `_SHADES`, unless `allow_shading`."""
+    (the band of holdout 9090's scene 5 was 0.094): `_SHADES`, unless `allow_shading`."""
     n_rest = int(rest.sum())
     sample = np.flatnonzero(rest)[:: max(n_rest // 100_000, 1)]  # medians of a regular subsample
     background = np.median(rgb.reshape(-1, 3)[sample], axis=0)
@@ -344,13 +344,8 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
 
     A sky reflected in a cylinder shades smoothly across the mirror and meets the floor at a
     horizon; objects are bounded by steps. Edges are Canny's on the channel of the largest
-    gradient (`contrast`: weak, strong) after a Gaussian blur of `sigma` px, and Canny's on blue −
-    red, thickened to `close_px` to close gaps at corners. (A white face lit by the blue sky differs
-    from a sky or a floor lit by the sun mostly in blue − red: holdout 9090 s4/0 and s5/3 by 0.054–0.058
-    there, by 0.027–0.033 in any channel; and a path tracer's noise on a grey or white face, of
-    brightness, cancels there: σ 0.005 against 0.016 in red. Canny's on one channel among the four
-    instead, the largest at each pixel, left gaps where the channel changed along an edge.) The
-    background is every region between them that reaches the edge of
+    gradient (`contrast`: weak, strong) after a Gaussian blur of `sigma` px, thickened to `close_px`
+    to close gaps at corners; the background is every region between them that reaches the edge of
     the mirror region (an object reaching it would be cut anyway), kept only where it holds
     `background_share` of `rest` (a checkered ground's cells are enclosed each). Every enclosed
     pixel is a seed."""
@@ -361,9 +356,6 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
     dy = np.ascontiguousarray(np.take_along_axis(dy, k, axis=2)[..., 0])
     weak, strong = (3.2 * 255.0 * c for c in contrast)
     edges = cv2.Canny(dx, dy, weak, strong, L2gradient=True) > 0
-    opponent = u8[..., 2].astype(np.int16) - u8[..., 0]  # blue − red, at most ±255
-    edges |= cv2.Canny(cv2.Sobel(opponent, cv2.CV_16S, 1, 0), cv2.Sobel(opponent, cv2.CV_16S, 0, 1), weak, strong,
-                       L2gradient=True) > 0
     square = np.ones((close_px, close_px), np.uint8)
     free = search & ~cv2.dilate((edges & search).astype(np.uint8), square).astype(bool)
     near = _reaching_rim(free, search, 4)
@@ -371,25 +363,18 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
         return None
     # The 3 px band of each edge beside an enclosed region: a pixel there is the region's where its
     # colour leaves the nearest background pixel's (3 × 3 mean) by more than the background's noise
-    # band (as `_uniform_background`'s, in a channel or in blue − red), so that a region ends where its
-    # colour does, not 1–2 px beyond it in the background (nor 1–2 px inside a face that differs
-    # from it mostly in blue − red).
+    # band (as `_uniform_background`'s), so that a region ends where its colour does, not 1–2 px
+    # beyond it in the background.
     band = search & ~free
     inside = free & ~near
     background = near.copy()
     near[band] = True
     if inside.any():
         sample = np.flatnonzero(background)[:: max(int(background.sum()) // 100_000, 1)]
-        level = _noise_band(_colour_distance(rgb.reshape(-1, 3)[sample], _mean3x3(rgb, sample)))
+        level = _noise_band(np.abs(rgb.reshape(-1, 3)[sample] - _mean3x3(rgb, sample)).max(axis=1))
         band &= cv2.distanceTransform((~inside).astype(np.uint8), cv2.DIST_L2, 5) <= 3.0
-        near[band] = _colour_distance(rgb[band], _mean3x3(rgb, _nearest(background, band))) <= level
+        near[band] = np.abs(rgb[band] - _mean3x3(rgb, _nearest(background, band))).max(axis=1) <= level
     return near, search & ~near, edges
-
-
-def _colour_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Largest difference between colours `a` and `b` ((N, 3) sRGB each) in a channel or in blue − red."""
-    d = a - b
-    return np.maximum(np.abs(d).max(axis=1), np.abs(d[:, 2] - d[:, 0]))
 
 
 def _mean3x3(img: np.ndarray, flat: np.ndarray) -> np.ndarray:
@@ -421,7 +406,8 @@ def _achromatic_regions(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarra
 
     The background is the mirror's one colour where it shows one and does not shade
     (`_uniform_background`: pixels of another colour are grown by hysteresis from seeds), else the
-    regions between the edges that reach the mirror's edge (`_enclosed`), else the one colour shading. Regions of lines under 5 px wide are dropped and taken for
+    regions between the edges that reach the mirror's edge (`_enclosed`), else the one colour
+    shading. Regions of lines under 5 px wide are dropped and taken for
     background. A region is an object only where the ring of pixels 1–2 px around it is background
     (at least `ring_share` of it): a cell of a checkered ground borders other cells. An enclosed
     region is also one only where the pixels 3–8 px around it are under `ENCLOSING_CLUTTER` edges.
