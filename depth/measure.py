@@ -306,8 +306,7 @@ def _uniform_background(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, m
     if np.count_nonzero(close <= 0.05) * (n_rest / len(sample)) < min_area:
         return None
     band = _noise_band(close)
-    if not allow_shading and band > SHADING_RATIO * _noise_band(
-            np.abs(rgb.reshape(-1, 3)[sample] - _mean3x3(rgb, sample)).max(axis=1)):
+    if not allow_shading and band > SHADING_RATIO * _pixel_noise_band(rgb, sample):
         return _SHADES
     near = dist <= band
     if np.mean(near[rest]) < background_share:
@@ -327,6 +326,12 @@ def _noise_band(dist: np.ndarray) -> float:
     return max(0.02, 4.0 * float(np.median(close))) if close.size else 0.02
 
 
+def _pixel_noise_band(rgb: np.ndarray, flat: np.ndarray) -> float:
+    """`_noise_band` of the pixels at flat indices `flat` about the mean of their 3 × 3 neighbours: their
+    noise alone, whatever the background's shading."""
+    return _noise_band(np.abs(rgb.reshape(-1, 3)[flat] - _mean3x3(rgb, flat)).max(axis=1))
+
+
 def _reaching_rim(mask: np.ndarray, search: np.ndarray, connectivity: int) -> np.ndarray:
     """The pixels of the connected regions of `mask` that reach within 2 px of the edge of `search`."""
     n_lab, labels = cv2.connectedComponents(mask.astype(np.uint8), connectivity=connectivity)
@@ -335,7 +340,6 @@ def _reaching_rim(mask: np.ndarray, search: np.ndarray, connectivity: int) -> np
     reach[np.unique(labels[rim & mask])] = True
     reach[0] = False
     return reach[labels]
-
 
 
 def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_share: float,
@@ -371,7 +375,7 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
     near[band] = True
     if inside.any():
         sample = np.flatnonzero(background)[:: max(int(background.sum()) // 100_000, 1)]
-        level = _noise_band(np.abs(rgb.reshape(-1, 3)[sample] - _mean3x3(rgb, sample)).max(axis=1))
+        level = _pixel_noise_band(rgb, sample)
         band &= cv2.distanceTransform((~inside).astype(np.uint8), cv2.DIST_L2, 5) <= 3.0
         near[band] = np.abs(rgb[band] - _mean3x3(rgb, _nearest(background, band))).max(axis=1) <= level
     return near, search & ~near, edges
