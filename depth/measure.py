@@ -47,6 +47,7 @@ class FailedMeasurement:
     reason: str
     no_contrast_side: int | None = None  # a side (index into SIDE_NAMES) with no contrast at all
     weak_side: int | None = None  # a left or right side with too few edge points of contrast, or consistent
+    side: int | None = None  # the side (index into SIDE_NAMES) with too few edge points of contrast
 
     def __bool__(self) -> bool:
         return False
@@ -1152,7 +1153,8 @@ def face_outline(
         default) for optical blur or a renderer's pixel filter, which mix light before the encoding:
         the edges stay where the linear-light area puts them. "encoded" for a blur of the stored sRGB
         values, as image software applies it: the edges are placed on the encoded values
-        (`_edge_offsets_encoded`). The wrong choice moves edges by 0.05–0.15 px toward the brighter
+        (`_edge_offsets_encoded`), and the thin strips read there too; a side whose encoded reading
+        lies more than `ENCODED_MAX_SHIFT_PX` from its linear one keeps the linear one. The wrong choice moves edges by 0.05–0.15 px toward the brighter
         side; `blur_domain_verdict` tells the two apart from an image's blurred faces.
 
     Returns
@@ -1179,38 +1181,69 @@ def face_outline(
     mask = face_mask[r0:r1, c0:c1]
     origin = np.array([c0, r0], dtype=np.float64)
 
-    model = _initial_model(mask)
-    if isinstance(model, FailedMeasurement):
-        return model
     L = profile_half_width_px
     two_point_sides = channels == "colour"  # not for JPEG (luma): see `_refine`
-    for half_width in (L, L, L, L):
-        result = _refine(linear, model, half_width, corner_margin_px, min_contrast,
-                         min_points_per_side, spacing_px, two_point_sides=two_point_sides)
-        if isinstance(result, FailedMeasurement):
-            return result
-        model = result
+
+    def refined(mask):
+        model = _initial_model(mask)
+        for half_width in (L, L, L, L):
+            if isinstance(model, FailedMeasurement):
+                break
+            model = _refine(linear, model, half_width, corner_margin_px, min_contrast,
+                            min_points_per_side, spacing_px, two_point_sides=two_point_sides)
+        return model
+
+    model = refined(mask)
+    if isinstance(model, FailedMeasurement):
+        # a stub of another face's pixels under (over) the mask, a few rows much narrower than the face,
+        # tilts the first fit of the bottom (top) side beyond the profiles' reach: once more without it.
+        # Not where the side shows no contrast at all: a mask cut inside a uniform region, which the
+        # caller grows to the blob (`extended_to_blob`)
+        core = None
+        if model.side in (2, 3) and model.no_contrast_side is None:
+            core = _without_end_stub(mask, model.side)
+        if core is not None and not isinstance(again := refined(core), FailedMeasurement):
+            model = again
+        else:
+            return model
+
+    def with_strips(colour):
+        model, strip, ramp, others = _esf_pass(colour, before_strips, min_contrast)
+        if strip.any():  # re-centre the band on the moved sides and measure them again
+            model, again, _, _ = _esf_pass(colour, model, min_contrast, sides=np.flatnonzero(strip > 0))
+            strip = np.where(again > 0, again, strip)
+        return model, strip, ramp, others
+
     strip = np.zeros(4)
     others = {}
-    colour = linear[..., :3]
     ramp = float("nan")
     before_strips = model
     if thin_strips:
-        model, strip, ramp, others = _esf_pass(colour, model, min_contrast)
-    if strip.any():  # re-centre the band on the moved sides and measure them again
-        model, again, _, _ = _esf_pass(colour, model, min_contrast, sides=np.flatnonzero(strip > 0))
-        strip = np.where(again > 0, again, strip)
+        model, strip, ramp, others = with_strips(linear[..., :3])
     if ramp > BLURRED_RAMP_PX and blur_domain == "encoded":
         # blurred after encoding (as most software blurs): place the edges on the encoded values
         # (a profile half a pixel longer: the blur's tails must not reach its ends); where it finds
-        # too few points (a neighbour within reach), the linear outline stands
+        # too few points (a neighbour within reach), the linear outline stands. The strips too are
+        # read on the encoded values, where the blur mixed the face's colour and the outside's along
+        # a line (in linear light their mix lies off it, as a strip's colour does); a side put at a
+        # strip's inner step stays there: a profile across it reads the strip too.
         srgb = image[r0:r1, c0:c1]
-        for half_width in (L + 0.5, L + 0.5):
-            result = _refine(linear, model, half_width, corner_margin_px, min_contrast,
-                             min_points_per_side, spacing_px, encoded=srgb, two_point_sides=two_point_sides)
-            if isinstance(result, FailedMeasurement):
+        model, strip, _, others = with_strips(srgb)
+        fixed = strip > 0
+        linear_model = model
+        for _ in range(2):  # once more with the sides that moved too far kept
+            model = linear_model
+            for half_width in (L + 0.5, L + 0.5):
+                result = _refine(linear, model, half_width, corner_margin_px, min_contrast,
+                                 min_points_per_side, spacing_px, encoded=srgb, two_point_sides=two_point_sides,
+                                 fixed=fixed)
+                if isinstance(result, FailedMeasurement):
+                    break
+                model = result
+            moved = _side_shifts(linear_model, model) > ENCODED_MAX_SHIFT_PX
+            if not (moved & ~fixed).any():
                 break
-            model = result
+            fixed = fixed | moved
     outline = _as_outline(model, origin, strip, ramp)
     if others:
         # one off-colour pixel is as well a strip filling it as a mixed pixel of the face, a
@@ -1232,6 +1265,22 @@ def face_outline(
             alt = (lines, quads, corners, sides, normals) + tuple(model[5:])
             outline = replace(outline, alternative=_as_outline(alt, origin, alt_strip, ramp))
     return outline
+
+
+ENCODED_MAX_SHIFT_PX = 0.5  # an encoded-domain edge farther than this from the linear one reads something else
+
+
+def _side_shifts(before, after) -> np.ndarray:
+    """Per side, the largest distance (px, along u for left/right, v for top/bottom) between the side
+    fits of two models at the first one's edge points."""
+    out = np.zeros(4)
+    for i in range(4):
+        q = before[3][i]
+        if i < 2:
+            out[i] = np.max(np.abs(np.polyval(after[0][i], q[:, 1]) - np.polyval(before[0][i], q[:, 1])))
+        else:
+            out[i] = np.max(np.abs(np.polyval(after[1][i - 2], q[:, 0]) - np.polyval(before[1][i - 2], q[:, 0])))
+    return out
 
 
 def _as_outline(model, origin, strip, ramp) -> FaceOutline:
@@ -1311,6 +1360,24 @@ def _robust_polyfit(x: np.ndarray, y: np.ndarray, degree: int, iterations: int =
     if keep.sum() > degree + 1:
         coef = np.polyfit(x[keep], y[keep], degree)
     return coef, keep
+
+
+_STUB_WIDTH_SHARE = 0.6  # an end row of a face mask narrower than this share of its median row width
+
+
+def _without_end_stub(mask: np.ndarray, side: int) -> np.ndarray | None:
+    """The face mask without the rows at its top (side 2) or bottom (side 3) narrower than
+    `_STUB_WIDTH_SHARE` of its median row width; None where there are none, or where little is left."""
+    width = mask.sum(axis=1)
+    rows = np.flatnonzero(width)
+    narrow = width[rows] < _STUB_WIDTH_SHARE * np.median(width[rows])
+    order = narrow if side == 2 else narrow[::-1]
+    n = int(np.argmin(order)) if not order.all() else len(rows)
+    if n == 0 or len(rows) - n < 3:
+        return None
+    out = mask.copy()
+    out[rows[:n] if side == 2 else rows[len(rows) - n:]] = False
+    return out if out.sum() >= 12 else None
 
 
 def _initial_model(mask: np.ndarray):
@@ -1643,7 +1710,9 @@ _ONE_STEP_TOLERANCE = 0.1  # change of the outside level a pixel farther out, as
 _ONE_STEP_SHARE = 0.7  # share of a side's points that must show one step for the encoded area
 
 
-def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing, encoded=None, two_point_sides=True):
+def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing, encoded=None, two_point_sides=True,
+            fixed=None):
+    """The model's sides measured again (all but those `fixed` marks, whose fits, points and figures stay)."""
     lines, quads, corners = model[:3]
     pts, nrm = _side_samples(lines, quads, corners, margin, spacing)
     h, w = linear.shape[:2]
@@ -1659,6 +1728,14 @@ def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing, en
         colour_reach = [None, None, reach, reach]
     new_lines, new_quads, sides, normals, rms, contrast, residuals = [], [], [], [], [], [], []
     for i, (p, n) in enumerate(zip(pts, nrm)):
+        if fixed is not None and fixed[i]:
+            (new_lines if i < 2 else new_quads).append(model[0][i] if i < 2 else model[1][i - 2])
+            sides.append(model[3][i])
+            normals.append(model[4][i])
+            rms.append(float(model[5][i]))
+            contrast.append(float(model[6][i]))
+            residuals.append(model[7][i])
+            continue
         name = SIDE_NAMES[i]
         min_points = min_lr if i < 2 else min(min_lr, _MIN_TB_POINTS)
         if two_point_sides and i >= 2 and len(p) <= _NARROW_TB_SAMPLES:
@@ -1694,6 +1771,7 @@ def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing, en
                 f"need {min_points} (median contrast {float(np.median(c)):.3f})",
                 no_contrast_side=i if float(np.median(c)) < min_contrast else None,
                 weak_side=i if i < 2 else None,
+                side=i,
             )
         q = p[good] + e[good, None] * n[good]
         if i < 2:
