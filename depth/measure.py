@@ -1153,9 +1153,9 @@ def face_outline(
         default) for optical blur or a renderer's pixel filter, which mix light before the encoding:
         the edges stay where the linear-light area puts them. "encoded" for a blur of the stored sRGB
         values, as image software applies it: the edges are placed on the encoded values
-        (`_edge_offsets_encoded`), and the thin strips read there too; a side whose encoded reading
-        lies more than `ENCODED_MAX_SHIFT_PX` from its linear one keeps the linear one. The wrong choice moves edges by 0.05–0.15 px toward the brighter
-        side; `blur_domain_verdict` tells the two apart from an image's blurred faces.
+        (`_edge_offsets_encoded`), and the thin strips read there too. The wrong choice moves edges by
+        0.05–0.15 px toward the brighter side; `blur_domain_verdict` tells the two apart from an image's
+        blurred faces.
 
     Returns
     -------
@@ -1229,21 +1229,13 @@ def face_outline(
         # strip's inner step stays there: a profile across it reads the strip too.
         srgb = image[r0:r1, c0:c1]
         model, strip, _, others = with_strips(srgb)
-        fixed = strip > 0
-        linear_model = model
-        for _ in range(2):  # once more with the sides that moved too far kept
-            model = linear_model
-            for half_width in (L + 0.5, L + 0.5):
-                result = _refine(linear, model, half_width, corner_margin_px, min_contrast,
-                                 min_points_per_side, spacing_px, encoded=srgb, two_point_sides=two_point_sides,
-                                 fixed=fixed)
-                if isinstance(result, FailedMeasurement):
-                    break
-                model = result
-            moved = _side_shifts(linear_model, model) > ENCODED_MAX_SHIFT_PX
-            if not (moved & ~fixed).any():
+        for half_width in (L + 0.5, L + 0.5):
+            result = _refine(linear, model, half_width, corner_margin_px, min_contrast,
+                             min_points_per_side, spacing_px, encoded=srgb, two_point_sides=two_point_sides,
+                             fixed=strip > 0)
+            if isinstance(result, FailedMeasurement):
                 break
-            fixed = fixed | moved
+            model = result
     outline = _as_outline(model, origin, strip, ramp)
     if others:
         # one off-colour pixel is as well a strip filling it as a mixed pixel of the face, a
@@ -1265,22 +1257,6 @@ def face_outline(
             alt = (lines, quads, corners, sides, normals) + tuple(model[5:])
             outline = replace(outline, alternative=_as_outline(alt, origin, alt_strip, ramp))
     return outline
-
-
-ENCODED_MAX_SHIFT_PX = 0.5  # an encoded-domain edge farther than this from the linear one reads something else
-
-
-def _side_shifts(before, after) -> np.ndarray:
-    """Per side, the largest distance (px, along u for left/right, v for top/bottom) between the side
-    fits of two models at the first one's edge points."""
-    out = np.zeros(4)
-    for i in range(4):
-        q = before[3][i]
-        if i < 2:
-            out[i] = np.max(np.abs(np.polyval(after[0][i], q[:, 1]) - np.polyval(before[0][i], q[:, 1])))
-        else:
-            out[i] = np.max(np.abs(np.polyval(after[1][i - 2], q[:, 0]) - np.polyval(before[1][i - 2], q[:, 0])))
-    return out
 
 
 def _as_outline(model, origin, strip, ramp) -> FaceOutline:
