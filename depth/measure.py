@@ -1184,8 +1184,8 @@ def face_outline(
     L = profile_half_width_px
     two_point_sides = channels == "colour"  # not for JPEG (luma): see `_refine`
 
-    def refined(mask):
-        model = _initial_model(mask)
+    def refined(region):
+        model = _initial_model(region)
         for half_width in (L, L, L, L):
             if isinstance(model, FailedMeasurement):
                 break
@@ -1207,8 +1207,8 @@ def face_outline(
         else:
             return model
 
-    def with_strips(colour):
-        model, strip, ramp, others = _esf_pass(colour, before_strips, min_contrast)
+    def with_strips(colour, start):
+        model, strip, ramp, others = _esf_pass(colour, start, min_contrast)
         if strip.any():  # re-centre the band on the moved sides and measure them again
             model, again, _, _ = _esf_pass(colour, model, min_contrast, sides=np.flatnonzero(strip > 0))
             strip = np.where(again > 0, again, strip)
@@ -1219,7 +1219,7 @@ def face_outline(
     ramp = float("nan")
     before_strips = model
     if thin_strips:
-        model, strip, ramp, others = with_strips(linear[..., :3])
+        model, strip, ramp, others = with_strips(linear[..., :3], before_strips)
     if ramp > BLURRED_RAMP_PX and blur_domain == "encoded":
         # blurred after encoding (as most software blurs): place the edges on the encoded values
         # (a profile half a pixel longer: the blur's tails must not reach its ends); where it finds
@@ -1228,7 +1228,7 @@ def face_outline(
         # a line (in linear light their mix lies off it, as a strip's colour does); a side put at a
         # strip's inner step stays there: a profile across it reads the strip too.
         srgb = image[r0:r1, c0:c1]
-        model, strip, _, others = with_strips(srgb)
+        model, strip, _, others = with_strips(srgb, before_strips)
         for half_width in (L + 0.5, L + 0.5):
             result = _refine(linear, model, half_width, corner_margin_px, min_contrast,
                              min_points_per_side, spacing_px, encoded=srgb, two_point_sides=two_point_sides,
