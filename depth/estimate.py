@@ -507,11 +507,13 @@ def _side_gaps(meas: FaceMeasurement) -> np.ndarray:
     return np.r_[np.asarray(meas.side_gaps_px, dtype=np.float64), np.full(2, np.nan)][:4]
 
 
-def _silhouette_disagreement(rays: RayFunction, blob_mask: np.ndarray) -> Callable:
+def _silhouette_disagreement(rays: RayFunction, blob_mask: np.ndarray, blob_only: bool = False) -> Callable:
     """A function of a cube (`raytrace.scene.Cube`) giving the number of pixels where its silhouette
     (the pixels whose reflected ray meets it, `Cube.hits`) and the blob disagree more than one pixel
     deep (their symmetric difference eroded by a 3×3 square: a pixel at the blob's edge is part cube,
-    part not, whichever pose is right). Pixels within half the blob's size of its bounding box are tested."""
+    part not, whichever pose is right). Pixels within half the blob's size of its bounding box are tested.
+    `blob_only`: only the blob's pixels outside the silhouette count (a cube face as bright as what is
+    behind it is no part of the blob, so the silhouette's pixels outside the blob say nothing)."""
     from scipy.ndimage import binary_erosion
 
     ys, xs = np.nonzero(blob_mask)
@@ -527,7 +529,8 @@ def _silhouette_disagreement(rays: RayFunction, blob_mask: np.ndarray) -> Callab
     def disagreement(cube):
         hit = np.zeros(len(seen), dtype=bool)
         hit[seen] = cube.hits(origins, directions)
-        return int(binary_erosion((hit != inside).reshape(yy.shape), np.ones((3, 3), dtype=bool)).sum())
+        off = inside & ~hit if blob_only else hit != inside
+        return int(binary_erosion(off.reshape(yy.shape), np.ones((3, 3), dtype=bool)).sum())
     return disagreement
 
 

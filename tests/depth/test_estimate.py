@@ -474,6 +474,37 @@ def test_silhouette_disagreement_against_embree_hits():
     assert SILHOUETTE_MARGIN_PX <= off(moved(0.05)) < off(moved(0.2))
 
 
+def test_silhouette_disagreement_of_the_blob_alone():
+    """With `blob_only`, only the blob's pixels outside the cube count: on the Embree render's blob of
+    the true cube, an 8 × 8 px hole cut inside it (a face as bright as what is behind it, no part of the
+    blob) disagrees by its 6 × 6 core both ways counted, and not at all counted from the blob; an 8 × 8
+    px square added beside the blob disagrees by 36 px either way."""
+    from depth.estimate import _silhouette_disagreement
+    from raytrace.render import render
+    from raytrace.scene import Scene
+    from raytrace.truth import mirror_rays
+
+    camera, mirror, cube = _sky_lit_scene()
+    r = render(Scene(mirror=mirror, objects=(cube,)), camera, spp=1, seed=0)
+    blob = (r.object_id == 0) & r.via_mirror
+    ys, xs = np.nonzero(blob)
+
+    def rays(px):
+        m = mirror_rays(camera, mirror, px)
+        return m.points, m.directions
+    r0, c0 = int(np.median(ys)) - 4, int(np.median(xs)) - 4
+    assert blob[r0 - 3:r0 + 11, c0 - 3:c0 + 11].all()  # the hole lies well inside the cube's pixels
+    holed = blob.copy()
+    holed[r0:r0 + 8, c0:c0 + 8] = False
+    row = int(np.median(ys[xs == xs.max()]))
+    patched = blob.copy()
+    patched[row - 4:row + 4, xs.max() + 1:xs.max() + 9] = True
+    assert _silhouette_disagreement(rays, holed)(cube) == 36
+    assert _silhouette_disagreement(rays, holed, blob_only=True)(cube) == 0
+    assert _silhouette_disagreement(rays, patched)(cube) == 36
+    assert _silhouette_disagreement(rays, patched, blob_only=True)(cube) == 36
+
+
 def test_a_tall_merged_top_face_is_told_by_the_silhouette():
     """Every face lit alike, the cube below the camera and turned 39°: its top face and a side face
     merge with the front face. Read as one tall front face (left side merged), the outline's edges fit

@@ -125,3 +125,56 @@ def test_a_mirror_without_contains_is_not_checked():
     class Surface:  # only what reconstruct needs to trace rays; no notion of inside
         radius = 1.0
     assert _inside_mirror_reason(Surface(), _cube_at((0.0, 0.0, 0.0))) is None
+
+
+def _rendered_blob():
+    """A cube seen in the mirror, turned 140.8° about the axis (the sky-lit scene of test_estimate),
+    and its blob as our ray tracer's Embree render sees it: the pixels whose one sample per pixel
+    hit it via the mirror."""
+    from scipy.spatial.transform import Rotation
+
+    from raytrace.camera import PinholeCamera
+    from raytrace.mirror import CylinderMirror
+    from raytrace.render import render
+    from raytrace.scene import Cube, Scene
+    camera = PinholeCamera.from_look_at((1024, 768), (1810.109, 1810.109), None, (0.0, 0.05601, 0.6221), (0, 0, 0),
+                                        (0, 1, 0))
+    mirror = CylinderMirror(0.12083, 0.5793, (0, 0, 0), (0, 1, 0))
+    cube = Cube(0.0394, np.array([0.21575, -0.10775, 0.26466]),
+                Rotation.from_euler("y", -140.81, degrees=True).as_matrix(), color=(0.8, 0.8, 0.8))
+    r = render(Scene(mirror=mirror, objects=(cube,)), camera, spp=1, seed=0)
+    return camera, mirror, cube, (r.object_id == 0) & r.via_mirror
+
+
+@pytest.mark.parametrize("patch_px, refused", [(0, False), (4, False), (12, True)])
+def test_a_grey_blob_reaching_past_the_cube_read_from_it_is_refused(patch_px, refused):
+    """`_shadow_reason` on a grey cube's blob rendered by our ray tracer, the estimate being the true
+    cube: its own blob is kept. With a square of `patch_px` px added beside it, touching it (a piece of
+    a larger object that the cube does not explain), (patch_px − 2)² of the blob's pixels lie outside
+    the cube more than a pixel deep: 4 (under `BLOB_OUTSIDE_SHARE` of the blob) are kept, 100 are
+    refused, and the reason gives the count."""
+    from depth.estimate import FaceMeasurement
+    from depth.reconstruct import BLOB_OUTSIDE_SHARE, _shadow_reason
+    from raytrace.truth import mirror_rays
+    camera, mirror, cube, blob = _rendered_blob()
+    ys, xs = np.nonzero(blob)
+    n_own = len(ys)
+    if patch_px:  # to the right of the blob's rightmost column, at its middle row
+        row = int(np.median(ys[xs == xs.max()]))
+        blob = blob.copy()
+        blob[row - patch_px // 2: row - patch_px // 2 + patch_px, xs.max() + 1: xs.max() + 1 + patch_px] = True
+    n_blob = int(blob.sum())
+    assert n_blob == n_own + patch_px ** 2
+    assert ((patch_px - 2) ** 2 > BLOB_OUTSIDE_SHARE * n_blob) == refused  # the case is what it says
+    est = CubeEstimate(method="exact", center=cube.center, size=cube.size, z=0.0, front_face_center=cube.center,
+                       normal=cube.rotation[:, 2], aspect_ratio=1.0, std={}, rms_residual=0.05)
+    meas = FaceMeasurement(sides_px=(), corners_px=np.zeros((4, 2)), face_px=np.zeros((0, 2)), blob_mask=blob)
+
+    def rays(px):
+        m = mirror_rays(camera, mirror, px)
+        return m.points, m.directions
+    reason = _shadow_reason(rays, meas, est, None, mirror.axis)
+    if refused:
+        assert reason is not None and f"{(patch_px - 2) ** 2} of its {n_blob} pixels lie outside the cube" in reason
+    else:
+        assert reason is None
