@@ -723,6 +723,11 @@ def test_bad_inputs_raise_depth_errors_naming_the_argument():
         face_outline(image, mirror.T)
     with pytest.raises(DepthError, match=r"image: expected finite"):
         face_outline(np.full_like(image, np.nan), mirror)
+    for bad in (np.nan, np.inf, -np.inf):  # one pixel's one channel is enough
+        spoilt = image.copy()
+        spoilt[37, 51, 1] = bad
+        with pytest.raises(DepthError, match=r"image: expected finite"):
+            detect_cubes(spoilt, mirror)
     assert issubclass(DepthError, ValueError)
 
 

@@ -178,3 +178,18 @@ def test_a_grey_blob_reaching_past_the_cube_read_from_it_is_refused(patch_px, re
         assert reason is not None and f"{(patch_px - 2) ** 2} of its {n_blob} pixels lie outside the cube" in reason
     else:
         assert reason is None
+
+
+def test_check_image_takes_8_bit_as_it_is_and_refuses_float_values_outside_0_1():
+    from depth.errors import DepthError
+    from depth.reconstruct import check_image
+    u8 = np.arange(4 * 5 * 3, dtype=np.uint8).reshape(4, 5, 3) * 4  # 0 .. 236
+    u8[0, 0, 0], u8[-1, -1, -1] = 0, 255
+    out = check_image(u8, (5, 4))
+    assert out.dtype == np.float64 and np.array_equal(out * 255.0, u8.astype(np.float64))
+    assert out.min() == 0.0 and out.max() == 1.0
+    for bad in (np.nan, np.inf, -np.inf, 1.0 + 1e-9, -1e-9):  # one channel of one pixel
+        img = out.copy()
+        img[2, 3, 1] = bad
+        with pytest.raises(DepthError, match=r"image: expected values in \[0, 1\]"):
+            check_image(img, (5, 4))
