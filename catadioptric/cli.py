@@ -334,8 +334,9 @@ def main(argv=None) -> int:
     """Entry point of the `catadioptric` console script; returns the exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    from raytrace.render import keep_freed_memory
-    keep_freed_memory()  # this process is ours: reuse freed memory rather than re-fault it
+    from raytrace.render import keep_freed_memory, plain_pages
+    keep_freed_memory()  # this process is ours: reuse freed memory rather than re-fault it,
+    plain_pages()  # and fault it in 4 KiB pages, without compacting memory for huge ones
     try:
         return int(args.func(args) or 0)
     except known_errors() as exc:

@@ -162,6 +162,22 @@ def test_keep_freed_memory_on_glibc():
     assert rr.keep_freed_memory() is True
 
 
+def test_plain_pages_turns_numpys_huge_page_advice_off_unless_its_variable_says(monkeypatch):
+    from numpy._core.multiarray import _set_madvise_hugepage
+
+    # it returns the setting it replaces
+    before = _set_madvise_hugepage(True)
+    try:
+        monkeypatch.delenv("NUMPY_MADVISE_HUGEPAGE", raising=False)
+        assert rr.plain_pages() is True
+        assert _set_madvise_hugepage(True) is False  # it was off
+        monkeypatch.setenv("NUMPY_MADVISE_HUGEPAGE", "1")  # the user's word stands
+        assert rr.plain_pages() is False
+        assert _set_madvise_hugepage(True) is True  # left on
+    finally:
+        _set_madvise_hugepage(before)
+
+
 def test_adaptive_matches_full_supersampling():
     """Flat shading: pixels without an edge in their 3×3 neighbourhood have the exact average at their centre."""
     scene = mirror_scene(size=0.08)
