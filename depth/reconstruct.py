@@ -17,7 +17,7 @@ import numpy as np
 from depth.errors import DepthError
 from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED, METHODS,
                             NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, CubeEstimate, FaceMeasurement,
-                            _silhouette_disagreement, estimate_face, estimate_faces_shape_prior)
+                            _silhouette_disagreement, estimate_face, estimate_faces_shape_prior, expected_work)
 from depth.workers import fork_map
 from raytrace.scene import Cube
 
@@ -529,9 +529,9 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     if method == "shape_prior":
         joint = estimate_faces_shape_prior(rays, [m for m, _, _ in measured])
         results = [settled(k, est) for k, est in enumerate(joint)]
-    else:  # each face on its own (in worker processes), those with the most edge points first
+    else:  # each face on its own (in worker processes), the longest expected first
         results = fork_map(settled, len(measured), workers,
-                           cost=[sum(len(s) for s in m.sides_px) for m, _, _ in measured])
+                           cost=[expected_work(m, method) for m, _, _ in measured])
     for est, outline, reason, bbox in results:
         if reason:
             refused.append(Refusal(bbox, reason))

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import example, given, settings, strategies as st
 
 from depth.errors import DepthError
-from depth.estimate import NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, estimate_face
+from depth.estimate import NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, FaceMeasurement, estimate_face, expected_work
 
 
 def centre_error(rig, est, cube):
@@ -830,3 +830,31 @@ def test_where_the_silhouette_overrules_the_edges_the_sigma_covers_both_readings
     assert len(found) == 1, [r.reason for r in rec.refused]
     dist = rig.depth(cube)
     assert abs(found[0].depth - dist) < 3.0 * found[0].depth_std
+
+
+def test_expected_work_counts_the_fits_exact_will_run_and_breaks_ties_by_edge_points():
+    """`expected_work`: a contour side (no gap, no back edge) doubles it, each gapless top/bottom side
+    adds half the base, a thin left/right gap doubles it; the other methods get the edge points."""
+    def pts(n):
+        return np.zeros((n, 2))
+
+    def meas(gaps, back=(None, None), n=(100, 100, 150, 150), sharp=True):
+        return FaceMeasurement(tuple(pts(k) for k in n), np.zeros((4, 2)), np.zeros((0, 2)), back_sides_px=back,
+                               side_gaps_px=gaps, no_side_face_gap_px=NO_SIDE_FACE_GAP_PX_SHARP if sharp else NO_SIDE_FACE_GAP_PX)
+    wide = 2.0  # px: a distinct side face
+    base = meas((wide, wide, wide, wide))
+    assert expected_work(base, "ddar") == expected_work(base, "dds") == 500.0
+    assert expected_work(base) == pytest.approx(2.0 * 1.5)
+    contour = meas((0.0, wide, wide, wide))
+    assert expected_work(contour) == pytest.approx(2.0 * expected_work(base))
+    # a back edge measured beside the other side: the side is hidden, not a contour
+    hidden = meas((0.0, wide, wide, wide), back=(None, pts(20)))
+    assert expected_work(hidden) == pytest.approx(2.0 * (1.0 + 520 / 1000.0))
+    tops = [meas((wide, wide, 0.0, wide)), meas((wide, wide, 0.0, 0.0))]
+    assert [expected_work(m) / expected_work(base) for m in tops] == pytest.approx([1.5, 2.0])
+    # a gap between the sharp and the blurred threshold: either reading, two runs; not for blurred faces
+    thin = 0.5 * (NO_SIDE_FACE_GAP_PX_SHARP + NO_SIDE_FACE_GAP_PX)
+    assert expected_work(meas((thin, wide, wide, wide))) == pytest.approx(2.0 * expected_work(base))
+    assert expected_work(meas((thin, wide, wide, wide), sharp=False)) == pytest.approx(
+        2.0 * expected_work(meas((wide, wide, wide, wide), sharp=False)))  # there it is a contour side
+    assert expected_work(meas((wide, wide, wide, wide), n=(300, 300, 150, 150))) > expected_work(base)
