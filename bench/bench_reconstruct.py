@@ -415,7 +415,7 @@ def command_seconds(quick: bool, log=print) -> dict | None:
     todo = [sc for r, sc in cases(quick) if r == "ours" and sc.setup.camera.resolution[0] == 2048]
     if not todo:
         return None
-    code = "import sys; from catadioptric.cli import main; sys.exit(main())"
+    code = "from catadioptric.cli import console; console()"  # the console script's entry point
     root = Path(__file__).resolve().parent.parent  # this checkout's packages, as the bench imports them
     secs = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -105,11 +105,6 @@ def check_image(image, resolution) -> np.ndarray:
     return img
 
 
-def _bbox(mask: np.ndarray) -> tuple:
-    ys, xs = np.nonzero(mask)
-    return (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1)
-
-
 def _pixels(mask: np.ndarray) -> np.ndarray:
     """(N, 2) float64 (u, v) of a mask's pixels, in row-major order."""
     ys, xs = np.nonzero(mask)
@@ -434,11 +429,11 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     domain, any_blurred = blur_domain, False
     for det, outcome in zip(detections, outcomes):
         if isinstance(outcome, str):
-            refused.append(Refusal(_bbox(det.mask), outcome))
+            refused.append(Refusal(det.bbox, outcome))
             continue
         face_px, outline, channels, meas, grown = outcome
         det = det if grown is None else grown
-        bbox = _bbox(det.mask)
+        bbox = det.bbox  # (the mask's bounds; np.nonzero over a 2048×1536 mask took 14 ms)
         face_mask = _mask_of(face_px, mask.shape)
         any_blurred = any_blurred or outline.blurred
         if outline.blurred and domain != "linear":

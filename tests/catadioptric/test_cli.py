@@ -22,6 +22,24 @@ def test_every_verb_has_help(capsys):
         assert verb in capsys.readouterr().out
 
 
+def test_the_console_script_is_console_which_exits_with_mains_status(tmp_path):
+    """`catadioptric` runs `console` (main in a process of its own): its exit status and one-line error
+    are main's."""
+    import subprocess
+    import sys
+    from importlib.metadata import entry_points
+
+    from catadioptric import cli
+    (script,) = entry_points(group="console_scripts", name="catadioptric")
+    assert script.load() is cli.console
+    missing = tmp_path / "missing.png"
+    done = subprocess.run([sys.executable, "-c", "from catadioptric.cli import console; console()", "reconstruct",
+                           str(missing)], capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode == 1
+    assert done.stderr.count("\n") == 1 and done.stderr.startswith("catadioptric: error: ") and str(missing) in done.stderr
+    assert not list(tmp_path.iterdir())
+
+
 @pytest.mark.parametrize("key, value, message", [
     ("camera", {"focal_px": [0.0, 350.0]}, "camera.focal_px: expected a list of 2 positive numbers"),
     ("mirror", {"axis": [0.0, 0.0, 0.0]}, "mirror.axis: expected a non-zero vector"),

@@ -230,6 +230,9 @@ def test_recall_and_no_false_positives_on_random_colourful_scenes(seed):
     assert len(detections) == len(cubes)
     for d in match(detections, cubes):
         assert d.usable, d.reason
+    for d in detections:  # bbox: the mask's bounds (depth.reconstruct takes it for them)
+        ys, xs = np.nonzero(d.mask)
+        assert d.bbox == (xs.min(), ys.min(), xs.max() + 1, ys.max() + 1)
 
 
 
