@@ -55,8 +55,14 @@ def run_reconstruction(image_path, setup_path=None, method=None, cube_size=None,
                        workers=None):
     """Validate the inputs and reconstruct (the faces on `workers` processes, default every core); returns
     (setup, setup_path, image, Reconstruction)."""
-    from depth.measure import BLUR_DOMAINS
-    from depth.reconstruct import ALL_METHODS, DEFAULT_METHOD, reconstruct
+    from concurrent.futures import ThreadPoolExecutor
+    with ThreadPoolExecutor(1) as reader:
+        # the image decoded (by OpenCV, which lets go of the GIL: 40 ms for a 2048×1536 PNG) while the
+        # first call imports scipy, which holds it (0.3 s); its errors are raised in turn, below, and the
+        # thread has ended before anything forks this process
+        reading = reader.submit(read_image, image_path)
+        from depth.measure import BLUR_DOMAINS
+        from depth.reconstruct import ALL_METHODS, DEFAULT_METHOD, reconstruct
     method = method or DEFAULT_METHOD
     if method not in ALL_METHODS:
         raise CatadioptricError(f"--method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
@@ -66,7 +72,7 @@ def run_reconstruction(image_path, setup_path=None, method=None, cube_size=None,
     if cube_size is not None and not (np.isfinite(cube_size) and cube_size > 0):
         raise CatadioptricError(f"--cube-size: expected a positive edge length in metres, got {cube_size}")
     setup_path = Path(setup_path) if setup_path else default_setup_path(image_path)
-    image = read_image(image_path)
+    image = reading.result()
     setup = load_setup(setup_path)
     w, h = setup.camera.resolution
     if image.shape[:2] != (h, w):

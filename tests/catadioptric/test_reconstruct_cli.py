@@ -134,6 +134,9 @@ def test_bad_inputs_exit_1_with_one_line_and_write_nothing(scene, capsys, tmp_pa
          "mirror: missing table [mirror]")
     _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--method", "magic", "-o", out],
          "--method: expected one of")
+    # the arguments are checked before the image's own errors (it is read beside the first imports)
+    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "junk.png"), "--method", "magic", "-o", out],
+         "--method: expected one of")
     _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--cube-size", "-1", "-o", out],
          "--cube-size: expected a positive edge length")
     _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--blur-domain", "gamma", "-o", out],
