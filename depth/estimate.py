@@ -667,8 +667,8 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     # top or bottom face: a sun from the side lights a side face differently from the front face, while
     # the top and bottom faces may still take the same sky light as the front face. The gap allowed is
     # the wider one even for sharp faces (a merged bottom face's far edge left a 0.33 px gap along its
-    # curve): the merged reading is only tried, and kept where it explains the outline no worse.
-    # (`tb_candidates`, above.)
+    # curve): the merged reading is only tried, and kept where it explains the outline no worse. These
+    # sides are `tb_candidates`, taken above with the others (`_gap_readings`).
     front_idx = np.flatnonzero(sid < 4)
 
     def face_pairs(faces):
