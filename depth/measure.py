@@ -1237,8 +1237,8 @@ def face_outline(
         linear_model = model
         for _ in range(2):  # once more with the sides that moved too far kept
             model = linear_model
-            for half_width in (L + 0.5, L + 0.5):
-                result = _refine(linear, model, half_width, corner_margin_px, min_contrast,
+            for _pass in range(2):  # refined twice, each time about the sides found the time before
+                result = _refine(linear, model, L + 0.5, corner_margin_px, min_contrast,
                                  min_points_per_side, spacing_px, encoded=srgb, two_point_sides=two_point_sides,
                                  fixed=fixed)
                 if isinstance(result, FailedMeasurement):
