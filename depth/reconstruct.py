@@ -16,9 +16,10 @@ import numpy as np
 
 from depth.errors import DepthError
 from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED, METHODS,
-                            NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, CubeEstimate, FaceMeasurement,
-                            _silhouette_disagreement, estimate_face, estimate_faces_shape_prior, expected_work)
-from depth.workers import fork_map
+                            NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, SOLVER_MODULES, CubeEstimate,
+                            FaceMeasurement, _silhouette_disagreement, estimate_face, estimate_faces_shape_prior,
+                            expected_work)
+from depth.workers import fork_map, import_in_background
 from raytrace.scene import Cube
 
 __all__ = ["ALL_METHODS", "CubeResult", "Refusal", "Reconstruction", "reconstruct", "check_image"]
@@ -327,6 +328,8 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         raise DepthError(f"blur_domain: expected one of auto, {', '.join(BLUR_DOMAINS)}, got {blur_domain!r}")
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1):
         raise DepthError(f"workers: expected an integer >= 1, got {workers!r}")
+    # the estimators' scipy modules imported while the cubes are detected (imports nothing meanwhile)
+    solvers_imported = import_in_background(SOLVER_MODULES)
     img = check_image(image, camera.resolution)
     mask = mirror_mask(camera, mirror)
     if not mask.any():
@@ -358,6 +361,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
 
     det_img = despeckled(img) if compressed else img
     detections = detect_cubes(det_img, mask, compressed=compressed)
+    solvers_imported()  # before any fork
     blobs = np.zeros(mask.shape, dtype=bool)  # every blob's pixels, refused ones too
     for det in detections:
         blobs |= det.mask

@@ -4,18 +4,24 @@
 scipy's least squares, which hold the GIL (two threads ran slower than one), so the faces go to
 processes. They are forked: a task is a closure over the parent's image, masks and ray function,
 which the workers inherit without pickling; only task indices and results cross the pipes.
+
+`import_in_background` imports modules in a thread meanwhile: `reconstruct` imports the estimators'
+scipy modules while it detects the cubes, before anything forks.
 """
 
 from __future__ import annotations
 
+import importlib
 import multiprocessing
 import os
+import sys
 import threading
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 
 from raytrace.render import keep_freed_memory, single_threaded_blas
 
-__all__ = ["available_cores", "fork_map"]
+__all__ = ["available_cores", "fork_map", "import_in_background"]
 
 _TASK = None  # the running `fork_map`'s task, inherited by its workers when they fork
 _LOCK = threading.Lock()  # one `fork_map` pool at a time per process (it owns `_TASK`)
@@ -91,3 +97,28 @@ def fork_map(task, n: int, workers: int | None = None, cost=None, progress=None)
     finally:
         _TASK = None
         _LOCK.release()
+
+
+def import_in_background(names) -> Callable[[], None]:
+    """Import the modules `names` not imported yet in a thread; returns the function that waits for it.
+
+    An import runs Python code and holds the GIL, while numpy's and OpenCV's work on whole images mostly
+    lets go of it, so an import overlaps such work. Until the returned function is called, the caller
+    must import nothing itself (two threads importing modules that import each other can deadlock) and
+    must not fork (`fork_map`: a process forked during an import inherits its held locks). An import
+    that fails here is left to fail again, with its error, where the module is used.
+    """
+    todo = [name for name in names if name not in sys.modules]
+    if not todo:
+        return lambda: None
+
+    def run():
+        for name in todo:
+            try:
+                importlib.import_module(name)
+            except ImportError:  # raised again, in the caller's thread, where the module is first used
+                return
+
+    thread = threading.Thread(target=run, name="import_in_background", daemon=True)
+    thread.start()
+    return thread.join

@@ -311,6 +311,24 @@ def test_faces_estimated_in_worker_processes_give_the_results_of_one_process(sce
         reconstruct(img, setup.camera.build(), setup.mirror.build(), workers=0)
 
 
+def test_the_command_in_a_fresh_process_gives_the_results_of_this_one(scene, capsys):
+    # A fresh process imports the estimators' scipy modules in a thread while it detects the cubes
+    # (`depth.workers.import_in_background`); in this process they are imported already.
+    import subprocess
+    import sys
+    out = scene / "fresh.json"
+    done = subprocess.run([sys.executable, "-c", "from catadioptric.cli import console; console()", "reconstruct",
+                           str(scene / "mirror.png"), "--setup", str(scene / "in.toml"), "-o", str(out)],
+                          capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr
+    assert "Traceback" not in done.stderr
+    capsys.readouterr()
+    assert main(["reconstruct", str(scene / "mirror.png"), "--setup", str(scene / "in.toml"),
+                 "-o", str(scene / "here.json")]) == 0
+    fresh, here = (json.loads(p.read_text()) for p in (out, scene / "here.json"))
+    assert len(fresh["cubes"]) == 2 and fresh["cubes"] == here["cubes"] and fresh["refused"] == here["refused"]
+
+
 def _white_cube_before_a_bright_sky():
     """(sRGB image (H, W, 3) uint8, its setup, the share (H, W, 1) of sky in each pixel) of a white cube
     turned 20° before a sky shading from linear 0.6 (left) to 0.95 (right) across the image: its front

@@ -57,3 +57,54 @@ def test_no_tasks_and_bad_worker_counts():
     with pytest.raises(ValueError, match="workers"):
         fork_map(lambda i: i, 3, workers=0)
     assert available_cores() >= 1
+
+
+def test_import_in_background_imports_the_modules_it_is_given(tmp_path, monkeypatch):
+    import sys
+    import threading
+
+    from depth.workers import import_in_background
+    (tmp_path / "bg_first.py").write_text("import bg_second\nVALUE = bg_second.VALUE + 1\n")
+    (tmp_path / "bg_second.py").write_text("VALUE = 41\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    for name in ("bg_first", "bg_second"):
+        monkeypatch.delitem(sys.modules, name, raising=False)
+    before = threading.active_count()
+    wait = import_in_background(["bg_first"])
+    wait()
+    assert sys.modules["bg_first"].VALUE == 42 and "bg_second" in sys.modules
+    assert threading.active_count() == before  # the thread has ended once waited for
+    # modules already imported: no thread at all
+    started = []
+    monkeypatch.setattr(threading.Thread, "start", lambda self: started.append(self))
+    import_in_background(["bg_first", "numpy"])()
+    assert started == []
+
+
+def test_import_in_background_leaves_a_failed_import_to_the_caller(tmp_path, monkeypatch, capfd):
+    import sys
+
+    from depth.workers import import_in_background
+    (tmp_path / "bg_broken.py").write_text("raise ImportError('bg_broken: no such thing')\n")
+    (tmp_path / "bg_after.py").write_text("VALUE = 1\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    for name in ("bg_broken", "bg_after"):
+        monkeypatch.delitem(sys.modules, name, raising=False)
+    import_in_background(["bg_broken", "bg_after"])()
+    assert "bg_broken" not in sys.modules and "bg_after" not in sys.modules  # stopped at the failure
+    assert capfd.readouterr().err == ""  # nothing printed from the thread
+    with pytest.raises(ImportError, match="no such thing"):
+        __import__("bg_broken")
+
+
+def test_the_estimators_scipy_modules_are_not_imported_with_the_package():
+    # `depth.reconstruct` imports them beside the detection (`import_in_background`), which only
+    # saves time when importing the package has not already done it
+    import subprocess
+    import sys
+
+    from depth.estimate import SOLVER_MODULES
+    code = ("import sys, depth.reconstruct, catadioptric.reconstruct; "
+            f"print(sorted(set({list(SOLVER_MODULES)!r}) & set(sys.modules)))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "[]"
