@@ -16,7 +16,7 @@ from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
-from scipy import ndimage
+import scipy  # scipy.ndimage is imported at its first use: see IMAGE_MODULES
 
 from depth.errors import DepthError
 
@@ -35,6 +35,12 @@ __all__ = [
 ]
 
 SIDE_NAMES = ("left", "right", "top", "bottom")
+
+IMAGE_MODULES = ("scipy.ndimage",)
+"""The scipy modules this module needs, imported at their first use rather than with it: in a fresh
+`catadioptric reconstruct` scipy.ndimage took 0.2 s of the import time, which
+`depth.reconstruct.reconstruct` now spends in a thread while it checks the image and starts the
+detection (whose first use of it is past the search for grey cubes)."""
 
 
 # ----------------------------------------------------------------------------- results
@@ -519,7 +525,7 @@ def faint_regrowth(image: np.ndarray, mirror_mask: np.ndarray, detection: CubeDe
         if found is None:
             return None
         blob = detection.mask[win]
-        n_lab, labels = cv2.connectedComponents(ndimage.binary_fill_holes(search & ~found[0]).astype(np.uint8),
+        n_lab, labels = cv2.connectedComponents(scipy.ndimage.binary_fill_holes(search & ~found[0]).astype(np.uint8),
                                                 connectivity=8)
         ids, counts = np.unique(labels[blob], return_counts=True)
         touching = np.zeros(n_lab, dtype=bool)
@@ -527,7 +533,7 @@ def faint_regrowth(image: np.ndarray, mirror_mask: np.ndarray, detection: CubeDe
         touching[0] = False
         grown = touching[labels] | blob
         # notches where the faint edge's band was taken for background, closed
-        grown = ndimage.binary_fill_holes(cv2.morphologyEx(grown.view(np.uint8), cv2.MORPH_CLOSE,
+        grown = scipy.ndimage.binary_fill_holes(cv2.morphologyEx(grown.view(np.uint8), cv2.MORPH_CLOSE,
                                                            cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))))
         if grown.sum() < 1.2 * blob.sum():
             return None
@@ -585,7 +591,7 @@ def _as_detection(rgb, value, chroma, local, origin, shape, *, cut, occluded, ac
 
 
 def _circular_smooth(hist: np.ndarray, sigma: float) -> np.ndarray:
-    return ndimage.gaussian_filter1d(hist.astype(np.float64), sigma, mode="wrap")
+    return scipy.ndimage.gaussian_filter1d(hist.astype(np.float64), sigma, mode="wrap")
 
 
 def _hue_modes(hue: np.ndarray, min_mass: float, min_separation_deg: float = 40.0) -> np.ndarray:
@@ -925,8 +931,8 @@ def _split_by_brightness(value: np.ndarray, chroma: np.ndarray, blob: np.ndarray
     brightness, at least half its chroma). What is left of the blob, less one-pixel
     slivers, makes the other faces.
     """
-    smooth = ndimage.gaussian_filter(value, 0.7)
-    grad = np.hypot(ndimage.sobel(smooth, axis=0), ndimage.sobel(smooth, axis=1)) / 8.0
+    smooth = scipy.ndimage.gaussian_filter(value, 0.7)
+    grad = np.hypot(scipy.ndimage.sobel(smooth, axis=0), scipy.ndimage.sobel(smooth, axis=1)) / 8.0
     noise = float(np.percentile(grad[blob], 30))
     flat = blob & (grad < max(0.25 * min_contrast, 5.0 * noise))
     n, lab, stats, _ = cv2.connectedComponentsWithStats(flat.astype(np.uint8), connectivity=4)
@@ -1100,7 +1106,7 @@ _CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
 
 def _clean_region(mask: np.ndarray) -> np.ndarray:
     """Fill holes, cut one-pixel spurs, keep the largest component."""
-    filled = ndimage.binary_fill_holes(mask)
+    filled = scipy.ndimage.binary_fill_holes(mask)
     opened = cv2.morphologyEx(filled.astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
     n, lab, stats, _ = cv2.connectedComponentsWithStats(opened, connectivity=4)
     if n <= 1:
@@ -1390,7 +1396,7 @@ def _initial_model(mask: np.ndarray):
     if not contours:
         return FailedMeasurement("face mask has no outline")
     contour = max(contours, key=len)[:, 0, :].astype(np.float64)  # (N, 2) u, v
-    smooth = ndimage.gaussian_filter(mask.astype(np.float64), 1.5)
+    smooth = scipy.ndimage.gaussian_filter(mask.astype(np.float64), 1.5)
     gv, gu = np.gradient(smooth)
     ci = contour.astype(int)
     g = np.stack([gu[ci[:, 1], ci[:, 0]], gv[ci[:, 1], ci[:, 0]]], axis=1)
@@ -1460,7 +1466,7 @@ def _bilinear(img: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     coords = np.stack([v.ravel(), u.ravel()])
     channels = img.shape[-1]
     out = np.stack(
-        [ndimage.map_coordinates(img[..., c], coords, order=1, mode="nearest") for c in range(channels)],
+        [scipy.ndimage.map_coordinates(img[..., c], coords, order=1, mode="nearest") for c in range(channels)],
         axis=-1,
     )
     return out.reshape(u.shape + (channels,))
@@ -1524,7 +1530,7 @@ def _along_side(levels: np.ndarray) -> np.ndarray:
     yet keeps the steps of a textured background); as they are for fewer than 5 points."""
     if len(levels) < 5:
         return levels
-    return ndimage.median_filter(levels, size=(5,) + (1,) * (levels.ndim - 1), mode="nearest")
+    return scipy.ndimage.median_filter(levels, size=(5,) + (1,) * (levels.ndim - 1), mode="nearest")
 
 
 def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25, colour_half_width=None,
@@ -1888,7 +1894,7 @@ def _level_along(linear, t_st, foot, n, dist):
     """Colour sampled at distance `dist` along n from foot points (S, 2), median over 5 stations."""
     c = _bilinear(linear, foot[:, 0] + dist * n[0], foot[:, 1] + dist * n[1])
     if len(c) >= 5:
-        c = ndimage.median_filter(c, size=(5, 1), mode="nearest")
+        c = scipy.ndimage.median_filter(c, size=(5, 1), mode="nearest")
     return c
 
 

@@ -319,8 +319,8 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         `depth.workers.fork_map`); default: every available core. The results do not depend on it.
     """
     from raytrace.truth import mirror_mask, mirror_rays
-    from depth.measure import (BLUR_DOMAINS, FAINT_EDGE_SMOOTHING_PX, blur_domain_verdict, detect_cubes,
-                               extended_to_blob, face_outline, faint_regrowth, same_material_faces)
+    from depth.measure import (BLUR_DOMAINS, FAINT_EDGE_SMOOTHING_PX, IMAGE_MODULES, blur_domain_verdict,
+                               detect_cubes, extended_to_blob, face_outline, faint_regrowth, same_material_faces)
 
     if method not in ALL_METHODS:
         raise DepthError(f"method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
@@ -328,8 +328,8 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         raise DepthError(f"blur_domain: expected one of auto, {', '.join(BLUR_DOMAINS)}, got {blur_domain!r}")
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1):
         raise DepthError(f"workers: expected an integer >= 1, got {workers!r}")
-    # the estimators' scipy modules imported while the cubes are detected (imports nothing meanwhile)
-    solvers_imported = import_in_background(SOLVER_MODULES)
+    # scipy's modules imported while the cubes are detected (which imports nothing meanwhile but these)
+    scipy_imported = import_in_background(IMAGE_MODULES + SOLVER_MODULES)
     img = check_image(image, camera.resolution)
     mask = mirror_mask(camera, mirror)
     if not mask.any():
@@ -361,7 +361,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
 
     det_img = despeckled(img) if compressed else img
     detections = detect_cubes(det_img, mask, compressed=compressed)
-    solvers_imported()  # before any fork
+    scipy_imported()  # before any fork
     blobs = np.zeros(mask.shape, dtype=bool)  # every blob's pixels, refused ones too
     for det in detections:
         blobs |= det.mask
