@@ -188,9 +188,9 @@ def match_truth(result: dict, truth: dict) -> list:
 
 def write_outputs(result: dict, json_path, overlay_path=None, overlay: np.ndarray | None = None) -> list:
     """Write the JSON result (and the overlay PNG) together."""
-    from catadioptric.simulate import encode_png
     with OutputSet() as out:
         out.write_text(json_path, json.dumps(result, indent=2) + "\n")
         if overlay_path is not None:
+            from catadioptric.simulate import encode_png
             out.write_bytes(overlay_path, encode_png(overlay))
     return [Path(json_path)] + ([Path(overlay_path)] if overlay_path is not None else [])

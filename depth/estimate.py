@@ -41,10 +41,11 @@ __all__ = ["METHODS", "FaceMeasurement", "CubeEstimate", "FailedEstimate", "esti
            "estimate_faces_shape_prior", "expected_work",
            "LocalXSlit", "local_xslit"]
 
-SOLVER_MODULES = ("scipy.optimize", "scipy.spatial.transform")
-"""The scipy modules the estimators need, imported at their first use rather than with this module: in
-a fresh `catadioptric reconstruct` they took 0.15 s of the import time, which
-`depth.reconstruct.reconstruct` now spends in a thread while it detects the cubes."""
+SOLVER_MODULES = ("scipy.optimize", "scipy.spatial.transform", "xslit_fit.fit", "xslit_fit.frame")
+"""The modules the estimators need, imported at their first use rather than with this module: in a
+fresh `catadioptric reconstruct` they took 0.16 s of the import time, which
+`depth.reconstruct.reconstruct` now spends in a thread while it detects the cubes (before it forks:
+each worker process imported xslit_fit afresh, 10 ms)."""
 
 
 def least_squares(*args, **kwargs):
