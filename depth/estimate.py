@@ -682,16 +682,28 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     # sides are `tb_candidates`, taken above with the others (`_gap_readings`).
     front_idx = np.flatnonzero(sid < 4)
 
+    front_lr = sid[front_idx] < 2
+    front_sign = sign[sid[front_idx]]
+
     def face_pairs(faces):
-        """The edges of the given faces as vertex pairs (P, 2), and per edge its face's (frame axis,
-        sign) for the visibility test (axis −1: the front face, always seen). Each face images as a
-        convex quadrilateral, so a line's largest crossing of it is on an edge."""
+        """The edges of the given faces as `contour` reads them. Per edge (a vertex pair) and front-side
+        point: the edge's vertices' coordinates (in edge lengths) along the coordinate the point's line
+        fixes (a for left/right points, b for top/bottom ones) and the one it measures, (P, N) each (the
+        points along the last axis: numpy's loops then run over them, not over the few edges), and
+        their w (P, 1). Per side-face edge: its face's frame axis and sign, for the visibility test (the
+        front face is always seen). Each face images as a convex quadrilateral, so a line's largest
+        crossing of it is on an edge."""
         pr = np.array([(f[i], f[(i + 1) % 4]) for f, _, _ in faces for i in range(4)])
         ax = np.repeat([-1 if a is None else a for _, a, _ in faces], 4)
         sg = np.repeat([sg for _, _, sg in faces], 4)
-        return pr, ax, sg
+        fixed = np.where(front_lr, _VERTS[:, 0:1], _VERTS[:, 1:2])  # (8, N)
+        measured = np.where(front_lr, _VERTS[:, 1:2], _VERTS[:, 0:1])
+        side = np.flatnonzero(ax >= 0)
+        return {"x0": fixed[pr[:, 0]], "x1": fixed[pr[:, 1]], "y0": measured[pr[:, 0]], "y1": measured[pr[:, 1]],
+                "w0": _VERTS[pr[:, 0], 2:3], "w1": _VERTS[pr[:, 1], 2:3],
+                "side": side, "side_axis": ax[side], "side_sign": sg[side, None]}
 
-    pairs, pair_axis, pair_sign = face_pairs(merged)
+    edges = face_pairs(merged)
 
     def coords(q, r, c, axes, s):
         """Per pose (K) and point (rays q, r: the points' own or those beside them): its measured
@@ -711,27 +723,41 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         along the point's row (left/right) or column (top/bottom) is the largest crossing of a face's
         edge, and the residual is the point's coordinate minus that extent. A point beyond
         the union's span keeps its front-edge residual."""
-        s = s[:, None, None]
+        s1 = s[:, None]
         dn = axes[:, 2] @ r.T
+        with np.errstate(divide="ignore", invalid="ignore"):  # (K, N): a back vertex's move along a and b
+            shift_a, shift_b = s1 * (axes[:, 0] @ r.T / dn), s1 * (axes[:, 1] @ r.T / dn)
+        # the projected vertices of each edge (K, P, N): x along the coordinate the point's line fixes
+        # (a for left/right points, b for top/bottom), y along the one measured
+        xs, ys = np.where(front_lr, shift_a, shift_b)[:, None], np.where(front_lr, shift_b, shift_a)[:, None]
+        s3 = s[:, None, None]
+        x0 = edges["x0"] * s3
+        x0 -= edges["w0"] * xs
+        x1 = edges["x1"] * s3
+        x1 -= edges["w1"] * xs
+        y0 = edges["y0"] * s3
+        y0 -= edges["w0"] * ys
+        y1 = edges["y1"] * s3
+        y1 -= edges["w1"] * ys
+        # where the line crosses each edge (t in [0, 1]), and the measured coordinate there
+        x1 -= x0
+        t = np.where(front_lr, a, b)[:, None] - x0
         with np.errstate(divide="ignore", invalid="ignore"):
-            shift = s * np.stack([axes[:, 0] @ r.T / dn, axes[:, 1] @ r.T / dn], axis=-1)  # (K, N, 2): a back vertex's move
-        # a side/top face is seen where its back edge moves outward (σ·shift > 0); hidden faces image
-        # inside the others and are left out (one hidden behind a seen top face would poke out)
-        seen = np.where(pair_axis < 0, True, pair_sign * shift[..., np.maximum(pair_axis, 0)] > 0)  # (K, N, P)
-        va = _VERTS[:, 0] * s - _VERTS[:, 2] * shift[..., 0:1]  # (K, N, 8) projected a
-        vb = _VERTS[:, 1] * s - _VERTS[:, 2] * shift[..., 1:2]  # (K, N, 8) projected b
-        lr = sid[front_idx] < 2
-        along = np.where(lr, a, b)  # the line: a = a_p for left/right points, b = b_p for top/bottom
-        x = np.where(lr[:, None], va, vb)  # coordinate fixed by the line
-        y = np.where(lr[:, None], vb, va)  # coordinate measured
-        x0, x1, y0, y1 = x[..., pairs[:, 0]], x[..., pairs[:, 1]], y[..., pairs[:, 0]], y[..., pairs[:, 1]]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = (along[..., None] - x0) / (x1 - x0)
-        sg = sign[sid[front_idx]][:, None]
-        cross = np.where(seen & np.isfinite(t) & (t >= 0) & (t <= 1), sg * (y0 + t * (y1 - y0)), -np.inf)
-        extent = cross.max(axis=-1)
-        measured = np.where(lr, b, a)
-        return np.where(np.isfinite(extent), measured - sign[sid[front_idx]] * extent, front)
+            t /= x1
+        y1 -= y0
+        y1 *= t
+        y0 += y1
+        crossed = t >= 0  # (NaN and ±inf for edges along the line fail one test or the other)
+        crossed &= t <= 1
+        if len(edges["side"]):
+            # a side/top face is seen where its back edge moves outward (σ·shift > 0); hidden faces image
+            # inside the others and are left out (one hidden behind a seen top face would poke out)
+            shift = np.stack([shift_a, shift_b], axis=1)  # (K, 2, N)
+            crossed[:, edges["side"]] &= edges["side_sign"] * shift[:, edges["side_axis"]] > 0
+        y0 *= front_sign
+        np.copyto(y0, -np.inf, where=~crossed)
+        extent = y0.max(axis=1)
+        return np.where(np.isfinite(extent), np.where(front_lr, b, a) - front_sign * extent, front)
 
     def pixel_weights(x):
         """1 / |image gradient| (metres per pixel) of each point's residual at pose x (7,), or per pose
@@ -974,7 +1000,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             rms_before = _rms(resid(result[0])[:len(sid)])
             before = (result, merged, weight)
             merged = merged + [(_TOPS[sign[k] > 0], 0, sign[k]) for k in tops]
-            pairs, pair_axis, pair_sign = face_pairs(merged)
+            edges = face_pairs(merged)
             weight = weight_start
             result = fit()
             rms_after = _rms(resid(result[0])[:len(sid)]) if result is not None else np.inf
@@ -1007,7 +1033,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
                                           f"pixels; the one the blob allows misses the edges by {rms_after:.2f} px)")
             if not keep:
                 result, merged, weight = before
-                pairs, pair_axis, pair_sign = face_pairs(merged)
+                edges = face_pairs(merged)
     if result is None:
         return FailedEstimate("exact", "least squares did not converge from any starting turn")
     x_best, cov, log, scales = result
