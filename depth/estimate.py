@@ -681,11 +681,10 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     # curve): the merged reading is only tried, and kept where it explains the outline no worse. These
     # sides are `tb_candidates`, taken above with the others (`_gap_readings`).
     front_idx = np.flatnonzero(sid < 4)
-
     front_lr = sid[front_idx] < 2
     front_sign = sign[sid[front_idx]]
 
-    def face_pairs(faces):
+    def face_edges(faces):
         """The edges of the given faces as `contour` reads them. Per edge (a vertex pair) and front-side
         point: the edge's vertices' coordinates (in edge lengths) along the coordinate the point's line
         fixes (a for left/right points, b for top/bottom ones) and the one it measures, (P, N) each (the
@@ -703,7 +702,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
                 "w0": _VERTS[pr[:, 0], 2:3], "w1": _VERTS[pr[:, 1], 2:3],
                 "side": side, "side_axis": ax[side], "side_sign": sg[side, None]}
 
-    edges = face_pairs(merged)
+    edges = face_edges(merged)
 
     def coords(q, r, c, axes, s):
         """Per pose (K) and point (rays q, r: the points' own or those beside them): its measured
@@ -1000,7 +999,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             rms_before = _rms(resid(result[0])[:len(sid)])
             before = (result, merged, weight)
             merged = merged + [(_TOPS[sign[k] > 0], 0, sign[k]) for k in tops]
-            edges = face_pairs(merged)
+            edges = face_edges(merged)
             weight = weight_start
             result = fit()
             rms_after = _rms(resid(result[0])[:len(sid)]) if result is not None else np.inf
@@ -1033,7 +1032,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
                                           f"pixels; the one the blob allows misses the edges by {rms_after:.2f} px)")
             if not keep:
                 result, merged, weight = before
-                edges = face_pairs(merged)
+                edges = face_edges(merged)
     if result is None:
         return FailedEstimate("exact", "least squares did not converge from any starting turn")
     x_best, cov, log, scales = result
