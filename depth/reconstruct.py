@@ -328,7 +328,8 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         raise DepthError(f"blur_domain: expected one of auto, {', '.join(BLUR_DOMAINS)}, got {blur_domain!r}")
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1):
         raise DepthError(f"workers: expected an integer >= 1, got {workers!r}")
-    # scipy's modules imported while the cubes are detected (which imports nothing meanwhile but these)
+    # the modules of scipy and xslit_fit needed later, imported while the cubes are detected (which imports
+    # nothing meanwhile but these)
     scipy_imported = import_in_background(IMAGE_MODULES + SOLVER_MODULES)
     img = check_image(image, camera.resolution)
     mask = mirror_mask(camera, mirror)

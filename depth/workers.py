@@ -5,8 +5,8 @@ scipy's least squares, which hold the GIL (two threads ran slower than one), so 
 processes. They are forked: a task is a closure over the parent's image, masks and ray function,
 which the workers inherit without pickling; only task indices and results cross the pipes.
 
-`import_in_background` imports modules in a thread meanwhile: `reconstruct` imports the estimators'
-scipy modules while it detects the cubes, before anything forks.
+`import_in_background` imports modules in a thread: `reconstruct` imports scipy's modules and the
+estimators' while it detects the cubes, before anything forks.
 """
 
 from __future__ import annotations
