@@ -1712,3 +1712,34 @@ def test_the_3x3_mean_at_chosen_pixels_is_a_box_filter_read_there(seed, h, w, in
         flat = np.r_[flat, 0, h * w - 1]  # the corners, whose neighbours lie beyond two edges
     box = ndimage.uniform_filter(img, size=(3, 3, 1), mode="nearest").reshape(-1, 3)
     np.testing.assert_allclose(_mean3x3(img, flat), box[flat], rtol=0, atol=1e-12)
+
+
+MITSUBA_WHITE_FAINT = Path(__file__).resolve().parents[1] / "data" / "mitsuba_white_low_contrast.png"
+"""A 72×150 crop of a Mitsuba 3 render (16 spp, Gaussian pixel filter; the holdout `python -m bench.holdout
+8080 --grey`, scene 2, cube 0): a white cube facing the axis before a yellowish sky, its front face 19 px
+wide and bluer than the sky by about 8 levels of 255 in blue, with a pixel noise of 4–5 levels.
+``mitsuba_white_low_contrast_mask.png`` is the mask of the face and the bottom face under it, as a detection
+that encloses the cube by its blue − yellow edges gives (the thirty-first and thirty-eighth sessions' trial)."""
+
+MITSUBA_WHITE_FAINT_CORNERS = np.array([[44.7326, 121.9116], [26.0709, 122.2108], [26.1562, 22.0523],
+                                        [44.801, 21.6134]])
+"""Its front face's corners (px, in the crop: BR, BL, TL, TR) from the exact reflection of the cube's edges
+(`cube_truth`)."""
+
+
+def test_a_strip_fainter_than_the_pixel_noise_is_not_read_beside_a_low_contrast_side():
+    """The left side of a face that differs from the sky beyond it by less than twice its pixel noise:
+    the face's own shading and noise make its last 3 px read as a strip of a colour 0.1 of the way from
+    the face's to the sky's and 0.05 off their line, less than one pixel's noise from the face. Read as
+    a strip, it put the side 2.6 px inside the face (the cube 142 % off). The side must stay on the face's
+    edge, with no strip."""
+    import cv2
+    image = _bench_crop(MITSUBA_WHITE_FAINT)
+    mask = cv2.imread(str(MITSUBA_WHITE_FAINT.with_name("mitsuba_white_low_contrast_mask.png")),
+                      cv2.IMREAD_GRAYSCALE) > 127
+    o = face_outline(image, mask)
+    assert o, getattr(o, "reason", "")
+    assert o.strip_px[0] == 0.0, o.strip_px
+    _, bl, tl, _ = MITSUBA_WHITE_FAINT_CORNERS
+    assert abs(_mean_u_offset(o.sides[0], tl, bl)) < 0.25
+    assert np.abs(o.corners_px[0, 0] - tl[0]) < 0.25  # the top-left corner on the true left side
