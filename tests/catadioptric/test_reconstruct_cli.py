@@ -145,6 +145,32 @@ def test_bad_inputs_exit_1_with_one_line_and_write_nothing(scene, capsys, tmp_pa
          "--workers: expected an integer >= 1, got 0")
 
 
+def test_a_one_shot_reconstruct_runs_without_the_cycle_collector(scene, capsys, tmp_path):
+    # The console script's `reconstruct` (`main(..., one_shot=True)`) runs with the cycle collector off:
+    # not one collection from the start of `main` on. Called as a library, `main` leaves it alone.
+    import gc
+
+    collections = []
+
+    def count(phase, info):
+        if phase == "start":
+            collections.append(info["generation"])
+
+    gc.callbacks.append(count)
+    try:
+        assert main(["reconstruct", str(scene / "mirror.png"), "-o", str(tmp_path / "a.json")]) == 0
+        assert gc.isenabled() and collections  # (the check below can see collections)
+        collections.clear()
+        assert main(["reconstruct", str(scene / "mirror.png"), "-o", str(tmp_path / "b.json")], one_shot=True) == 0
+        assert not gc.isenabled()
+        assert collections == []
+        assert json.loads((tmp_path / "a.json").read_text())["cubes"] == json.loads((tmp_path / "b.json").read_text())["cubes"]
+    finally:
+        gc.enable()
+        gc.callbacks.remove(count)
+    capsys.readouterr()
+
+
 def test_image_without_cubes_says_so(scene, capsys, tmp_path):
     # The mirror region with the cubes painted over by the background, plus noise: nothing to find, not an
     # error.
