@@ -337,9 +337,9 @@ def main(argv=None, *, one_shot: bool = False) -> int:
     `one_shot`: the process ends with this command (`console`). A command marked
     `without_cycle_collector` then runs with Python's cycle collector off, and leaves it off for the
     process's end. `reconstruct` allocates few reference cycles, but its imports (scipy, on a thread
-    while the cubes are detected) create some 50 000 objects, and the collections they trigger stop the
-    detection too (they hold the interpreter lock); turned back on, the collector's next pass walks
-    everything allocated meanwhile (39 ms). Measured on a 2048×1536 image with `gc.callbacks`: 43 ms of
+    while the cubes are detected) create most of the 58 000 objects alive at its end (`console`), and the
+    collections they trigger stop the detection too (they hold the interpreter lock); turned back on, the collector's next pass walks
+    everything allocated meanwhile (39 ms). Measured on a 2048×1536 image with `gc.callbacks`: 43–47 ms of
     collections in the parent process, almost none in the workers. The reports' figures (matplotlib) are
     made of cycles: those commands keep it."""
     if one_shot:

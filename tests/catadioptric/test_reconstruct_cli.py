@@ -164,7 +164,8 @@ def test_a_one_shot_reconstruct_runs_without_the_cycle_collector(scene, capsys, 
         assert main(["reconstruct", str(scene / "mirror.png"), "-o", str(tmp_path / "b.json")], one_shot=True) == 0
         assert not gc.isenabled()
         assert collections == []
-        assert json.loads((tmp_path / "a.json").read_text())["cubes"] == json.loads((tmp_path / "b.json").read_text())["cubes"]
+        library, one_shot = (json.loads((tmp_path / n).read_text())["cubes"] for n in ("a.json", "b.json"))
+        assert library == one_shot
     finally:
         gc.enable()
         gc.callbacks.remove(count)
