@@ -356,6 +356,46 @@ def test_the_command_in_a_fresh_process_gives_the_results_of_this_one(scene, cap
     assert len(fresh["cubes"]) == 2 and fresh["cubes"] == here["cubes"] and fresh["refused"] == here["refused"]
 
 
+def test_the_console_script_ends_without_the_interpreters_teardown_but_with_its_output(scene, tmp_path):
+    # `console` ends the process once `main` returns: the atexit functions run and the piped (so
+    # block-buffered) output arrives whole, after the written files' paths, but objects still alive
+    # are not finalised one by one (the teardown would print "finalised").
+    import subprocess
+    import sys
+    out = tmp_path / "r.json"
+    code = ("import atexit; atexit.register(print, 'atexit ran')\n"
+            "class Alive:\n    def __del__(self): print('finalised')\n"
+            "alive = Alive()\nfrom catadioptric.cli import console; console()")
+    done = subprocess.run([sys.executable, "-c", code, "reconstruct", str(scene / "mirror.png"), "--setup",
+                           str(scene / "in.toml"), "-o", str(out)], capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    assert lines[-1] == "atexit ran" and lines[-2] == str(out)
+    assert "finalised" not in done.stdout
+    assert len(json.loads(out.read_text())["cubes"]) == 2
+
+
+@pytest.mark.parametrize("command", ["reconstruct", "design"])
+def test_a_closed_output_pipe_ends_the_command_quietly(scene, tmp_path, command):
+    # stdout is a pipe nobody reads (`| head` gone): exit status 1, no traceback, nothing on stderr, with
+    # the output written by rich (reconstruct's table) or by print (design's JSON; a traceback before).
+    import os
+    import subprocess
+    import sys
+    args = {"reconstruct": ["reconstruct", str(scene / "mirror.png"), "--setup", str(scene / "in.toml"),
+                            "-o", str(tmp_path / "r.json")],
+            "design": ["design", str(scene / "in.toml"), "--json"]}[command]
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        done = subprocess.run([sys.executable, "-c", "from catadioptric.cli import console; console()", *args],
+                              stdout=write_end, stderr=subprocess.PIPE, text=True, check=False)
+    finally:
+        os.close(write_end)
+    assert done.returncode == 1
+    assert done.stderr == ""
+
+
 def _white_cube_before_a_bright_sky():
     """(sRGB image (H, W, 3) uint8, its setup, the share (H, W, 1) of sky in each pixel) of a white cube
     turned 20° before a sky shading from linear 0.6 (left) to 0.95 (right) across the image: its front
