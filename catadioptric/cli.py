@@ -382,10 +382,11 @@ def console() -> None:
 
 
 def _end_process(status: int) -> None:
-    """End this process now with `status` (1 instead of 0 where stdout's reader has gone, as `main` ends
-    such a command), as `sys.exit` would but without the interpreter's teardown: the `atexit` functions
-    run and the standard streams are flushed first. Returns where another thread is alive (the
-    interpreter would wait for it) or a flush fails otherwise (the interpreter reports that itself)."""
+    """End this process now with `status` (1 instead of 0 where a standard stream's reader has gone, as
+    `main` ends such a command), as `sys.exit` would but without the interpreter's teardown: the `atexit`
+    functions run (`atexit._run_exitfuncs`, which the interpreter's exit calls) and the standard streams
+    are flushed first. Returns where another thread is alive (the interpreter would wait for it) or a
+    flush fails otherwise (the interpreter reports that itself)."""
     import atexit
     import os
     import threading
