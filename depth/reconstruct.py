@@ -172,6 +172,10 @@ read as a cube 0.93 m away, its face turned to its rays (4.5 %: the top face rea
 read as the front; invented once that image's blur was read as linear, `BLUR_EVIDENCE_MARGIN`)."""
 
 
+SHADOW_MISFIT_REASON = "no colour, and its outline is no square face's"
+"""How `_shadow_reason`'s refusal for an edge misfit over `SHADOW_MISFIT_PX` begins."""
+
+
 def _shadow_reason(rays, meas, est, cube_size, up) -> str | None:
     """Why a face found without colour is not taken for a cube, or None.
 
@@ -186,7 +190,7 @@ def _shadow_reason(rays, meas, est, cube_size, up) -> str | None:
     if not check:
         return f"no colour and no square face: {check.reason} (a shadow?)"
     if check.rms_residual > SHADOW_MISFIT_PX:
-        return (f"no colour, and its outline is no square face's (edge misfit {check.rms_residual:.2f} px > "
+        return (f"{SHADOW_MISFIT_REASON} (edge misfit {check.rms_residual:.2f} px > "
                 f"{SHADOW_MISFIT_PX} px): a shadow?")
     if meas.blob_mask is not None:
         n_blob = int(np.count_nonzero(meas.blob_mask))
@@ -319,8 +323,9 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         `depth.workers.fork_map`); default: every available core. The results do not depend on it.
     """
     from raytrace.truth import mirror_mask, mirror_rays
-    from depth.measure import (BLUR_DOMAINS, FAINT_EDGE_SMOOTHING_PX, IMAGE_MODULES, blur_domain_verdict,
-                               detect_cubes, extended_to_blob, face_outline, faint_regrowth, same_material_faces)
+    from depth.measure import (BLUR_DOMAINS, FAINT_EDGE_CONTRAST, FAINT_EDGE_READINGS, IMAGE_MODULES,
+                               blur_domain_verdict, detect_cubes, extended_to_blob, face_outline, faint_regrowth,
+                               same_material_faces)
 
     if method not in ALL_METHODS:
         raise DepthError(f"method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
@@ -368,11 +373,15 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         blobs |= det.mask
     thin_strips = not compressed  # JPEG ringing beside an edge mimics a thin strip
 
-    def regrown(det):
+    def regrown(det, fainter=True):
         """An achromatic detection grown across faint edges (`faint_regrowth`), usable and touching no
-        other blob: each such reading, one per blur of `FAINT_EDGE_SMOOTHING_PX` in turn."""
-        for smoothing in FAINT_EDGE_SMOOTHING_PX:
-            grown = faint_regrowth(det_img, mask, det, compressed=compressed, smoothing_px=smoothing)
+        other blob: each such reading, one per (blur, steps) of `FAINT_EDGE_READINGS` in turn (without
+        `fainter`, only those at `FAINT_EDGE_CONTRAST`)."""
+        for smoothing, contrast in FAINT_EDGE_READINGS:
+            if not fainter and contrast != FAINT_EDGE_CONTRAST:
+                continue
+            grown = faint_regrowth(det_img, mask, det, compressed=compressed, smoothing_px=smoothing,
+                                   contrast=contrast)
             if grown is None or grown.reason:
                 continue
             ring = cv2.dilate(grown.mask.view(np.uint8), np.ones((5, 5), np.uint8)).view(bool)
@@ -513,8 +522,11 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         if reason and k in achromatic and method != "shape_prior":
             # A white or grey cube before a background of nearly its brightness: only its darker faces
             # were found, and no cube's front face explains them. The blob grown across faint edges
-            # (`faint_regrowth`), where it touches no other blob, is the other reading.
-            for grown in regrown(sources[k][0]):
+            # (`faint_regrowth`), where it touches no other blob, is the other reading. A region whose
+            # outline is no square face's (a shadow's hexagon) is not read at the fainter steps: none
+            # of the cubes they found on the holdouts had been refused so, and a floor scene's shadows
+            # took most of their time.
+            for grown in regrown(sources[k][0], fainter=not reason.startswith(SHADOW_MISFIT_REASON)):
                 out = outline_detection(grown)
                 if isinstance(out, str):
                     continue
