@@ -524,8 +524,8 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             # were found, and no cube's front face explains them. The blob grown across faint edges
             # (`faint_regrowth`), where it touches no other blob, is the other reading. A region whose
             # outline is no square face's (a shadow's hexagon) is not read at the fainter steps: none
-            # of the cubes they found on the holdouts had been refused so, and a floor scene's shadows
-            # took most of their time.
+            # of the cubes they found on the holdouts had been refused so, and on the lighting bench's
+            # grey floor scenes such regions took half of their calls (21 of 42).
             for grown in regrown(sources[k][0], fainter=not reason.startswith(SHADOW_MISFIT_REASON)):
                 out = outline_detection(grown)
                 if isinstance(out, str):
