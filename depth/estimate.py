@@ -438,12 +438,11 @@ def _turned_extents(local: LocalXSlit, kap: dict, z: float, size: float, theta: 
     """The κ extents (along v1, along v2; as `_kappa_extents`) of a square face of edge `size` centred on
     the measured face's ray at frame depth z, with edges along the slit directions v1 and v2 (as `_ddar`
     reads it) but turned by θ about the vertical one, imaged by the local XSlit."""
+    from scipy.spatial.transform import Rotation  # see SOLVER_MODULES
     xs = local.xslit
     centre = xs.back_project(xs.from_kappa(kap["corners"].mean(axis=0)[None]), z)[0]
-    up = np.r_[xs.basis[:, local.vertical], 0.0]
-    up /= np.linalg.norm(up)
-    across = np.r_[xs.basis[:, 1 - local.vertical], 0.0]
-    across = across * np.cos(theta) + np.cross(up, across) * np.sin(theta) + up * (up @ across) * (1.0 - np.cos(theta))
+    up = np.r_[xs.basis[:, local.vertical], 0.0]  # the basis' columns are unit vectors
+    across = Rotation.from_rotvec(theta * up).apply(np.r_[xs.basis[:, 1 - local.vertical], 0.0])
     # corners in `_extents`' order: 0 → 3 and 1 → 2 the vertical sides, 0 → 1 and 3 → 2 the horizontal ones
     signs = np.array([(-1, -1), (-1, 1), (1, 1), (1, -1)], dtype=np.float64)
     corners = centre + 0.5 * size * (signs[:, :1] * up + signs[:, 1:] * across)
