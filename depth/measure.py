@@ -2216,7 +2216,16 @@ def blur_domain_verdict(image: np.ndarray, outlines: list) -> str | None:
     blurred = [o for o in outlines if o and o.blurred]
     if not blurred:
         return None
-    ev = np.array([blur_domain_evidence(image, o) for o in blurred])
+    return pooled_blur_domain([blur_domain_evidence(image, o) for o in blurred])
+
+
+def pooled_blur_domain(evidence: list) -> str:
+    """`blur_domain_verdict` from the `blur_domain_evidence` of an image's blurred faces (a non-empty list
+    of (Σ w·log ratio, Σ w)), computed wherever is convenient (`depth.reconstruct`: beside each outline,
+    in its worker process)."""
+    ev = np.asarray(evidence, dtype=float).reshape(-1, 2)
+    if not len(ev):
+        raise ValueError("pooled_blur_domain: expected the evidence of at least one blurred face, got none")
     w = float(ev[:, 1].sum())
     return "encoded" if w >= BLUR_EVIDENCE_MIN_WEIGHT and ev[:, 0].sum() < -BLUR_EVIDENCE_MARGIN * w else "linear"
 
