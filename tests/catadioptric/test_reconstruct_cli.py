@@ -338,6 +338,33 @@ def test_faces_estimated_in_worker_processes_give_the_results_of_one_process(sce
         reconstruct(img, setup.camera.build(), setup.mirror.build(), workers=0)
 
 
+@pytest.mark.parametrize("acted", ["encoded", "linear"])
+def test_the_blur_domain_pooled_from_the_workers_is_the_verdict_on_the_image(scene, acted):
+    # each blurred face's evidence is computed in its outline worker and pooled after: the verdict must be
+    # `blur_domain_verdict`'s on the same outlines, in one process, and say where the blur acted
+    from scipy import ndimage
+
+    from catadioptric.setup import load_setup
+    from depth.measure import blur_domain_verdict, detect_cubes, face_outline, srgb_to_linear
+    from depth.reconstruct import reconstruct
+    from raytrace.render import linear_to_srgb8
+    from raytrace.truth import mirror_mask
+    setup = load_setup(scene / "in.toml")
+    camera, mirror = setup.camera.build(), setup.mirror.build()
+    img = cv2.cvtColor(cv2.imread(str(scene / "mirror.png")), cv2.COLOR_BGR2RGB) / 255.0
+    blur = lambda x: ndimage.gaussian_filter(x, sigma=(0.7, 0.7, 0))  # noqa: E731
+    if acted == "encoded":
+        img = np.round(np.clip(blur(img), 0, 1) * 255).astype(np.uint8)
+    else:
+        img = linear_to_srgb8(blur(srgb_to_linear(img)))
+    img = img / 255.0
+    runs = [reconstruct(img, camera, mirror, workers=w) for w in (1, 2)]
+    assert [len(r.cubes) for r in runs] == [2, 2]
+    dets = detect_cubes(img, mirror_mask(camera, mirror))
+    outlines = [face_outline(img, d.front_face_mask, blur_domain="linear") for d in dets]
+    assert runs[0].blur_domain == runs[1].blur_domain == blur_domain_verdict(img, outlines) == acted
+
+
 def test_the_command_in_a_fresh_process_gives_the_results_of_this_one(scene, capsys):
     # A fresh process imports the estimators' scipy modules in a thread while it detects the cubes
     # (`depth.workers.import_in_background`); in this process they are imported already.

@@ -1508,6 +1508,20 @@ def test_blur_domain_evidence_tells_where_the_blur_acted():
                                        for c in cubes]) is None  # sharp: no blurred face, no verdict
 
 
+def test_pooled_blur_domain_reads_the_pooled_evidence_with_its_margin_and_least_weight():
+    from depth.measure import BLUR_EVIDENCE_MARGIN as m
+    from depth.measure import BLUR_EVIDENCE_MIN_WEIGHT as w
+    from depth.measure import pooled_blur_domain
+    # clearly encoded, pooled over faces in any order; the same mean just inside the margin: linear
+    faces = [(-2 * m * 0.6 * w, 0.6 * w), (-2 * m * 0.5 * w, 0.5 * w)]
+    assert pooled_blur_domain(faces) == pooled_blur_domain(faces[::-1]) == "encoded"
+    assert pooled_blur_domain([(-0.9 * m * 1.1 * w, 1.1 * w)]) == "linear"
+    # strong per side, but too little weight in all
+    assert pooled_blur_domain([(-5 * m * 0.9 * w, 0.9 * w)]) == "linear"
+    with pytest.raises(ValueError, match="at least one blurred face"):
+        pooled_blur_domain([])
+
+
 MITSUBA_ORANGE_STRIP = Path(__file__).resolve().parents[1] / "data" / "mitsuba_orange_strip.png"
 """A 50×100 crop of a Mitsuba 3 render (16 spp, Gaussian pixel filter on linear light; `python -m
 bench.holdout 7070`, scene 0, cube 3): an orange cube facing the axis on a grey floor, its front face
