@@ -218,7 +218,8 @@ class CubeEstimate:
 
     center, front_face_center : (3,) world metres; size : edge length; depth : distance from the
     mirror axis to `center` (filled by the caller, who knows the mirror); normal : (3,) the front
-    face's outward normal (toward the mirror); std : first-order σ of 'z', 'size', 'center'.
+    face's outward normal (toward the mirror); std : first-order σ of 'z', 'size', 'center' (and for
+    `shape_prior`, 'scale': the factor those were scaled by where the cubes disagree).
     """
 
     method: str
@@ -1194,10 +1195,16 @@ def estimate_faces_shape_prior(rays: RayFunction, measurements, seed: int = 0) -
             out[i] = FailedEstimate("shape_prior", f"the joint solution's common size is {size:.3g} m, not "
                                                    "positive: the cubes are not all one size")
         return out
-    size_std = 0.5 * float(np.hypot(sol.kappa_x_std, sol.kappa_y_std))
+    # The σ propagated from the extents covers their noise only. Where the cubes disagree beyond it (a cube
+    # turned, whose width shrinks; cubes not all one size), the joint solution is off by more: every σ is
+    # scaled by the Birge ratio of the 2K equations, sqrt(χ² / E[χ²]) (`ShapePriorResult.birge_ratio`),
+    # where it exceeds 1 (the Particle Data Group's scale factor). Two cubes have no redundancy to show it.
+    scale = max(1.0, sol.birge_ratio) if np.isfinite(sol.birge_ratio) else 1.0
+    size_std = scale * 0.5 * float(np.hypot(sol.kappa_x_std, sol.kappa_y_std))
     for j, i in enumerate(ok):
         local, kap = prepared[i]
-        std = {"z": float(sol.depth_std[j]), "size": size_std, "center": float(np.hypot(sol.depth_std[j], size_std / 2))}
+        z_std = scale * float(sol.depth_std[j])
+        std = {"z": z_std, "size": size_std, "center": float(np.hypot(z_std, size_std / 2)), "scale": scale}
         out[i] = _place(local, kap, float(sol.depths[j]), size, "shape_prior", ext[j, 0] / ext[j, 1], std)
     return out
 

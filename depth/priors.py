@@ -32,7 +32,10 @@ class ShapePriorResult:
     """Depths and common size of K identical rectangles.
 
     depths : (K,) float64 — z^j;  kappa_x, kappa_y : float — the rectangles' true extents along v1, v2;
-    depth_std : (K,), kappa_x_std, kappa_y_std : first-order σ; rms_residual : of the 2K equations.
+    depth_std : (K,), kappa_x_std, kappa_y_std : first-order σ; rms_residual : of the 2K equations;
+    chi2 : their sum of squares, each weighted by its σ propagated from the extents' (nan without σ);
+    chi2_expected : its expectation were the extents' noise all that moves them (the equations are solved
+    unweighted, so this is not the K − 2 of a weighted fit; about 0 for K = 2).
     """
 
     depths: np.ndarray
@@ -42,6 +45,14 @@ class ShapePriorResult:
     kappa_x_std: float
     kappa_y_std: float
     rms_residual: float
+    chi2: float = float("nan")
+    chi2_expected: float = float("nan")
+
+    @property
+    def birge_ratio(self) -> float:
+        """sqrt(chi2 / chi2_expected): about 1 when the rectangles agree to within their extents' σ, above it
+        when they do not (not all one size, or one turned); nan for K = 2 (no redundancy) or without σ."""
+        return float(np.sqrt(self.chi2 / self.chi2_expected)) if len(self.depths) > 2 else float("nan")
 
     @property
     def base_ratio(self) -> float:
@@ -134,9 +145,16 @@ def shape_prior(kappa_uv, z1: float, z2: float, sigma=0.0) -> ShapePriorResult:
     dr[2 * rows + 1] = (x[:n] - z1) * sig[:, 1]
     jac = pinv * dr[None, :]
     std = np.sqrt(np.sum(jac ** 2, axis=1))
+    chi2 = chi2_expected = float("nan")
+    if np.all(dr != 0):
+        # the residuals r = (I − A·A⁺)·dm move with the noise: E[Σ (r/dr)²] = Σ_i (M·diag(dr²)·Mᵀ)_ii / dr_i²
+        m = np.eye(2 * n) - a @ pinv
+        chi2 = float(np.sum((resid / dr) ** 2))
+        chi2_expected = float(np.sum((m * dr[None, :]) ** 2 / dr[:, None] ** 2))
     return ShapePriorResult(depths=x[:n], kappa_x=float(x[n]), kappa_y=float(x[n + 1]),
                             depth_std=std[:n], kappa_x_std=float(std[n]), kappa_y_std=float(std[n + 1]),
-                            rms_residual=float(np.sqrt(np.mean(resid ** 2))))
+                            rms_residual=float(np.sqrt(np.mean(resid ** 2))), chi2=chi2,
+                            chi2_expected=chi2_expected)
 
 
 def depth_prior(r_i, z1: float, z2: float, sigma=0.0, r_o_bounds: tuple[float, float] | None = None

@@ -57,6 +57,7 @@ class CubeResult:
             "method": e.method,
             "uncertainty": {"depth": float(self.depth_std), "size": float(e.std.get("size", np.nan)),
                             "center": float(e.std.get("center", np.nan))},
+            **({"uncertainty_scale": float(e.std["scale"])} if "scale" in e.std else {}),
             "front_face_normal": [float(x) for x in e.normal],
             "local_xslit": e.xslit,
             "edge_points": int(self.edge_points),

@@ -190,6 +190,31 @@ def test_shape_prior_recovers_common_size_of_identical_cubes(rig):
     assert not single[0] and "at least 2" in single[0].reason
 
 
+def test_shape_prior_sigma_widens_where_the_cubes_disagree(rig):
+    # the prior takes every cube for one facing its XSlit and all of one size; a turned cube images
+    # narrower, a larger one wider, and the joint solution is off by more than the extents' noise. The
+    # Birge ratio of its residuals scales σ to cover that: 12 sets of 4 turned cubes (±25°), then 12
+    # of 4 facing cubes ±8 % in size, exact edges. With the scale held at 1, 24 / 62 / 72 % of the
+    # depths fell within 1 / 2 / 3 σ (with it 62 / 82 / 96 %).
+    from depth.estimate import estimate_faces_shape_prior
+    rng = np.random.default_rng(1)
+    z = []
+    for turn, spread in [(25.0, 0.0)] * 12 + [(0.0, 0.08)] * 12:
+        cubes = [rig.cube(d, az, yaw_deg=t, size=s) for d, az, t, s in zip(
+            rng.uniform(0.35, 0.9, 4), np.linspace(-30, 30, 4) + rng.uniform(-4, 4, 4),
+            rng.uniform(-turn, turn, 4), 0.04 * (1 + spread * rng.uniform(-1, 1, 4)))]
+        for est, cube in zip(estimate_faces_shape_prior(rig.rays, [rig.measure(c) for c in cubes]), cubes):
+            assert est and est.std["scale"] >= 1.0
+            depth = float(rig.mirror.distance_to_axis(est.center[None])[0])
+            z.append(abs(depth - rig.depth(cube)) / est.std["z"])
+    z = np.array(z)
+    assert len(z) == 96
+    assert np.mean(z <= 1) >= 0.45 and np.mean(z <= 3) >= 0.88
+    # identical cubes facing the axis agree: their σ is left as propagated
+    same = [rig.cube(0.35, -30.0), rig.cube(0.6, 5.0), rig.cube(0.85, 25.0)]
+    assert {e.std["scale"] for e in estimate_faces_shape_prior(rig.rays, [rig.measure(c) for c in same])} == {1.0}
+
+
 @pytest.mark.parametrize("sizes, distances", [((0.02, 0.08), (0.35, 0.85)), ((0.03, 0.06), (0.5, 0.6))])
 def test_shape_prior_refuses_cubes_of_other_sizes_whose_joint_size_comes_out_negative(rig, sizes, distances):
     # the joint least squares has no sign constraint: two cubes 4x (2x) apart in size drive the common

@@ -44,6 +44,28 @@ def test_shape_prior_uncertainty_is_calibrated():
     np.testing.assert_allclose(errs.std(axis=0), stds.mean(axis=0), rtol=0.15)
 
 
+@pytest.mark.parametrize("depths", [[650.0, 1000.0, 1500.0, 2200.0, 2900.0], [700.0, 1200.0, 1900.0]])
+def test_shape_prior_chi2_expected_is_the_mean_chi2_of_noisy_extents(depths):
+    # the Birge ratio that scales the estimator's σ is sqrt(χ² / E[χ²]); E[χ²] comes from the design.
+    # Checked against 2000 seeded noisy trials: their mean χ² is it, and the ratio's square averages 1.
+    # (The equations are solved unweighted, their σ ~100× apart: a weighted fit's K − 2, 3 and 1 here, is
+    # 2.6× short.)
+    rng = np.random.default_rng(44)
+    k = extents(depths, 80.0, 50.0)
+    sigma = 1e-3 * np.abs(k)
+    res = [priors.shape_prior(k + rng.normal(0, 1, k.shape) * sigma, Z1, Z2, sigma=sigma) for _ in range(2000)]
+    chi2, expected = np.array([r.chi2 for r in res]), np.array([r.chi2_expected for r in res])
+    assert np.mean(chi2) == pytest.approx(expected.mean(), rel=0.08)
+    assert np.mean([r.birge_ratio ** 2 for r in res]) == pytest.approx(1.0, rel=0.08)
+    # extents 1 % off the common shape (one rectangle 3 % wider) show as a ratio well above 1
+    off = k.copy()
+    off[0, 0] *= 1.03
+    assert priors.shape_prior(off, Z1, Z2, sigma=sigma).birge_ratio > 5.0
+    # two rectangles leave nothing over; no σ, no χ²
+    assert np.isnan(priors.shape_prior(k[:2], Z1, Z2, sigma=sigma[:2]).birge_ratio)
+    assert np.isnan(priors.shape_prior(k, Z1, Z2).chi2)
+
+
 def test_depth_prior_exact_and_calibrated():
     depths = np.array([900.0, 1300.0, 1700.0, 2100.0])
     r_i = ddar.aspect_ratio(depths, Z1, Z2, 1.3)
