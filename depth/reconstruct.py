@@ -392,9 +392,9 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     def outlined(i):
         """Detection i's front face outlined: (face pixels (N, 2) (u, v), outline, channels, its
         measurement without the blob mask, the grown detection read or None for the one found, its
-        `blur_domain_evidence` or None), or the reason it is refused (str). A white or grey cube before a background of nearly its brightness
-        may be found as its darker faces alone, which no face outline explains: its blob grown across
-        faint edges is read then. (The detection found is not handed back: its full-image masks, pickled
+        `blur_domain_evidence` or None), or the reason it is refused (str). A white or grey cube before
+        a background of nearly its brightness may be found as its darker faces alone, which no face
+        outline explains: its blob grown across faint edges is read then. (The detection found is not handed back: its full-image masks, pickled
         from the worker processes, came to 47 MB for a 2048×1536 image's 5 cubes.)"""
         det = detections[i]
         outcome = outline_detection(det)
