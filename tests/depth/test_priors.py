@@ -57,7 +57,7 @@ def test_shape_prior_chi2_expected_is_the_mean_chi2_of_noisy_extents(depths):
     chi2, expected = np.array([r.chi2 for r in res]), np.array([r.chi2_expected for r in res])
     assert np.mean(chi2) == pytest.approx(expected.mean(), rel=0.08)
     assert np.mean([r.birge_ratio ** 2 for r in res]) == pytest.approx(1.0, rel=0.08)
-    # extents 1 % off the common shape (one rectangle 3 % wider) show as a ratio well above 1
+    # one rectangle 3 % wider than the common shape shows as a ratio well above 1
     off = k.copy()
     off[0, 0] *= 1.03
     assert priors.shape_prior(off, Z1, Z2, sigma=sigma).birge_ratio > 5.0
