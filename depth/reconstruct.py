@@ -323,10 +323,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     workers : int >= 1, optional — processes the faces are outlined and estimated in (forked,
         `depth.workers.fork_map`); default: every available core. The results do not depend on it.
     """
-    from raytrace.truth import mirror_mask, mirror_rays
-    from depth.measure import (BLUR_DOMAINS, FAINT_EDGE_CONTRAST, FAINT_EDGE_READINGS, IMAGE_MODULES,
-                               blur_domain_evidence, detect_cubes, extended_to_blob, face_outline, faint_regrowth,
-                               pooled_blur_domain, same_material_faces)
+    from depth.measure import BLUR_DOMAINS, IMAGE_MODULES, checked_images
 
     if method not in ALL_METHODS:
         raise DepthError(f"method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
@@ -338,6 +335,21 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     # nothing meanwhile but these)
     scipy_imported = import_in_background(IMAGE_MODULES + SOLVER_MODULES)
     img = check_image(image, camera.resolution)
+    det_img = despeckled(img) if compressed else img
+    # checked here once: not again by each face's outline, silhouette, blur evidence and regrowth
+    with checked_images(img, det_img):
+        return _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, compressed, blur_domain,
+                            workers, scipy_imported)
+
+
+def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, compressed, blur_domain, workers,
+                 scipy_imported) -> Reconstruction:
+    """`reconstruct` of its checked image `img` (and `det_img`, the one cubes are detected on)."""
+    from raytrace.truth import mirror_mask, mirror_rays
+    from depth.measure import (FAINT_EDGE_CONTRAST, FAINT_EDGE_READINGS, blur_domain_evidence, detect_cubes,
+                               extended_to_blob, face_outline, faint_regrowth, pooled_blur_domain,
+                               same_material_faces)
+
     mask = mirror_mask(camera, mirror)
     if not mask.any():
         raise DepthError("image: the setup's camera sees no mirror")
@@ -366,7 +378,6 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             if outline:
                 yield face_mask | part, outline
 
-    det_img = despeckled(img) if compressed else img
     detections = detect_cubes(det_img, mask, compressed=compressed)
     scipy_imported()  # before any fork
     blobs = np.zeros(mask.shape, dtype=bool)  # every blob's pixels, refused ones too

@@ -25,6 +25,8 @@ from depth.measure import (
     CubeDetection,
     FaceOutline,
     FailedMeasurement,
+    _check_image,
+    checked_images,
     detect_cubes,
     face_outline,
     faint_regrowth,
@@ -33,6 +35,7 @@ from depth.measure import (
     silhouette_sides,
     srgb_to_linear,
 )
+from depth.workers import fork_map
 
 # --------------------------------------------------------------------- synthetic images
 
@@ -788,6 +791,27 @@ def test_bad_inputs_raise_depth_errors_naming_the_argument():
         with pytest.raises(DepthError, match=r"image: expected finite"):
             detect_cubes(spoilt, mirror)
     assert issubclass(DepthError, ValueError)
+
+
+def test_an_image_vouched_for_is_not_checked_again_there_and_only_there():
+    # `checked_images` skips the whole-image check for the very arrays it is given, in this process and
+    # in the ones `fork_map` forks from it; a copy, a slice, or the same array outside it is checked
+    image, mirror = make_image((60, 80), [])
+    spoilt = image * 255.0  # values out of [0, 1]: the check would refuse it
+    with checked_images(spoilt):
+        assert _check_image(spoilt) is spoilt
+        for other in (spoilt.copy(), spoilt[1:]):
+            with pytest.raises(DepthError, match=r"image: expected values in \[0, 1\]"):
+                _check_image(other)
+        forked = fork_map(lambda i: _check_image(spoilt) is spoilt, 2, workers=2)
+        assert forked == [True, True]
+        with checked_images(image):  # nested: both vouched for, the outer one still
+            assert _check_image(spoilt) is spoilt and _check_image(image) is image
+        assert _check_image(spoilt) is spoilt
+    with pytest.raises(DepthError, match=r"image: expected values in \[0, 1\]"):
+        _check_image(spoilt)
+    with pytest.raises(DepthError, match=r"image: expected values in \[0, 1\]"):
+        detect_cubes(spoilt, mirror)
 
 
 # ------------------------------------------------------------------ against our renderer
