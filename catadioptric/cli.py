@@ -196,7 +196,7 @@ def _cmd_reconstruct(args) -> int:
     if args.overlay and Path(args.overlay).suffix.lower() != ".png":
         raise CatadioptricError(f"{args.overlay}: --overlay: expected an output file name ending in .png")
     workers = None if args.workers is None else _check_positive_int(args.workers, "--workers")
-    with Progress("measuring cubes") as bar:
+    with Progress("outlining and estimating cubes") as bar:
         setup, setup_path, image, rec = rc.run_reconstruction(args.image, args.setup, args.method,
                                                               args.cube_size, progress=bar,
                                                               blur_domain=args.blur_domain, workers=workers)

@@ -311,7 +311,9 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     mirror : raytrace.mirror.CylinderMirror (or any mirror with `intersect`)
     method : "exact" (default), "ddar", "dds" or "shape_prior"
     cube_size : float, optional — known edge length in metres
-    progress : callable(done, total), optional: called as each detected blob is outlined
+    progress : callable(done, total), optional: called as each detected blob is outlined, then as each
+        face outlined is estimated; `total` is twice the blobs detected (a blob refused at its outline
+        counts as estimated then)
     compressed : bool — the image went through lossy (JPEG) compression: cubes are detected on
         the `despeckled` image, edges are located on luma (its chroma is subsampled; colour where
         luma shows no edge) and its ringing is not taken for thin strips beside the faces
@@ -405,8 +407,9 @@ def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, comp
         measurement without the blob mask, the grown detection read or None for the one found, its
         `blur_domain_evidence` or None), or the reason it is refused (str). A white or grey cube before
         a background of nearly its brightness may be found as its darker faces alone, which no face
-        outline explains: its blob grown across faint edges is read then. (The detection found is not handed back: its full-image masks, pickled
-        from the worker processes, came to 47 MB for a 2048×1536 image's 5 cubes.)"""
+        outline explains: its blob grown across faint edges is read then. (The detection found is not
+        handed back: its full-image masks, pickled from the worker processes, came to 47 MB for a
+        2048×1536 image's 5 cubes.)"""
         det = detections[i]
         outcome = outline_detection(det)
         if isinstance(outcome, str) and det.achromatic and not (det.reason or det.cut_by_mirror_edge or det.occluded):
@@ -452,7 +455,7 @@ def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, comp
 
     # Each detection's face on its own (in worker processes), the larger blobs first.
     outcomes = fork_map(outlined, len(detections), workers, cost=[int(det.mask.sum()) for det in detections],
-                        progress=progress)
+                        progress=None if progress is None else lambda done, _: progress(done, 2 * len(detections)))
     cubes, refused, measured, blurred, evidences = [], [], [], [], []
     achromatic = set()  # indices into measured of the faces found without colour
     alternatives = {}  # index into measured: (blob mask, face pixels, channels) of a face with two readings
@@ -556,12 +559,21 @@ def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, comp
                     break
         return est, outline, reason, bbox
 
+    # the estimates' progress, after the outlines' (the blobs refused at theirs counted as estimated)
+    before = len(detections) + len(refused)
+    estimated = None if progress is None else lambda done, _: progress(before + done, 2 * len(detections))
+    if estimated is not None and refused:
+        estimated(0, len(measured))
     if method == "shape_prior":
         joint = estimate_faces_shape_prior(rays, [m for m, _, _ in measured])
-        results = [settled(k, est) for k, est in enumerate(joint)]
+        results = []
+        for k, est in enumerate(joint):
+            results.append(settled(k, est))
+            if estimated is not None:
+                estimated(k + 1, len(measured))
     else:  # each face on its own (in worker processes), the longest expected first
         results = fork_map(settled, len(measured), workers,
-                           cost=[expected_work(m, method) for m, _, _ in measured])
+                           cost=[expected_work(m, method) for m, _, _ in measured], progress=estimated)
     for est, outline, reason, bbox in results:
         if reason:
             refused.append(Refusal(bbox, reason))

@@ -331,9 +331,21 @@ def test_faces_estimated_in_worker_processes_give_the_results_of_one_process(sce
     from depth.reconstruct import reconstruct
     setup = load_setup(scene / "in.toml")
     img = cv2.cvtColor(cv2.imread(str(scene / "mirror.png")), cv2.COLOR_BGR2RGB)
-    runs = [reconstruct(img, setup.camera.build(), setup.mirror.build(), workers=w) for w in (1, 2)]
+    calls = {1: [], 2: []}
+    runs = [reconstruct(img, setup.camera.build(), setup.mirror.build(), workers=w,
+                        progress=lambda done, total, w=w: calls[w].append((done, total))) for w in (1, 2)]
     one, two = ([c.to_dict() for c in r.cubes] + [x.to_dict() for x in r.refused] for r in runs)
     assert len(runs[0].cubes) == 2 and one == two
+    # the progress runs through the outlines, then the estimates (the longer part): each blob twice
+    blobs = len(runs[0].cubes) + len(runs[0].refused)
+    for seen in calls.values():
+        assert seen[-1] == (2 * blobs, 2 * blobs) and {t for _, t in seen} == {2 * blobs}
+        done = [d for d, _ in seen]
+        assert done == sorted(done) and len([d for d in done if d > blobs]) >= len(runs[0].cubes)
+    joint = []  # shape_prior: the faces solved jointly, each then checked in turn
+    reconstruct(img, setup.camera.build(), setup.mirror.build(), method="shape_prior",
+                progress=lambda done, total: joint.append((done, total)))
+    assert joint[-1] == (2 * blobs, 2 * blobs) and [d for d, _ in joint] == sorted(d for d, _ in joint)
     with pytest.raises(DepthError, match="workers: expected an integer >= 1, got 0"):
         reconstruct(img, setup.camera.build(), setup.mirror.build(), workers=0)
 
