@@ -25,8 +25,8 @@ from depth.errors import DepthError
 __all__ = [
     "CubeDetection",
     "FaceOutline",
-    "checked_images",
     "FailedMeasurement",
+    "checked_images",
     "detect_cubes",
     "face_outline",
     "same_material_faces",
