@@ -146,12 +146,21 @@ def _measurement(img, blob_mask, outline, face_px, channels, compressed):
     from depth.measure import silhouette
 
     sil = silhouette(img, blob_mask, outline, channels=channels)
+    no_gap = NO_SIDE_FACE_GAP_PX if compressed or outline.blurred else NO_SIDE_FACE_GAP_PX_SHARP
+    backs, gaps = list(sil.sides), list(sil.gaps_px)
+    # A side face the blob left out (`FaceOutline.faint_side_px`): its outer edge is the back vertical edge
+    # the silhouette would have shown, where the silhouette shows no face beside either side (a cube shows
+    # at most one of its left and right faces). The edge runs parallel to the side's points, that far out.
+    shown = [backs[k] is not None or gaps[k] > no_gap for k in (0, 1)]
+    for k in (0, 1):
+        if outline.faint_side_px[k] > 0.0 and not any(shown):
+            backs[k] = outline.sides[k] + outline.faint_side_px[k] * outline.normals[k]
+            gaps[k] = float(outline.faint_side_px[k])
     return FaceMeasurement(tuple(outline.sides), outline.corners_px, face_px, outline.edge_noise_px,
-                           back_sides_px=sil.sides, side_gaps_px=tuple(sil.gaps_px), strip_px=tuple(outline.strip_px),
+                           back_sides_px=tuple(backs), side_gaps_px=tuple(gaps), strip_px=tuple(outline.strip_px),
                            edge_bias_px=EDGE_BIAS_PX_COMPRESSED if compressed
                            else EDGE_BIAS_PX_BLURRED if outline.blurred else EDGE_BIAS_PX,
-                           no_side_face_gap_px=NO_SIDE_FACE_GAP_PX if compressed or outline.blurred
-                           else NO_SIDE_FACE_GAP_PX_SHARP, blob_mask=blob_mask)
+                           no_side_face_gap_px=no_gap, blob_mask=blob_mask)
 
 
 SHADOW_MISFIT_PX = 0.45
@@ -376,7 +385,7 @@ def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, comp
             if not (part & ~face_mask).any():  # already in the face (a union read at its outline)
                 continue
             outline = face_outline(img, face_mask | part, thin_strips=thin_strips, channels=channels,
-                                   blur_domain=blur)
+                                   blur_domain=blur, faint_sides=det.achromatic)
             if outline:
                 yield face_mask | part, outline
 
@@ -430,10 +439,12 @@ def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, comp
             return det.reason or ("cut by the mirror's edge" if det.cut_by_mirror_edge else "occluded by another cube")
         channels = "luma" if compressed else "colour"  # JPEG: chroma at half resolution
         face_mask = det.front_face_mask
-        outline = face_outline(img, face_mask, thin_strips=thin_strips, channels=channels, blur_domain="linear")
+        faint = det.achromatic  # (`face_outline`'s `faint_sides`)
+        outline = face_outline(img, face_mask, thin_strips=thin_strips, channels=channels, blur_domain="linear",
+                               faint_sides=faint)
         if not outline and compressed:  # luma failed as a whole: colour alone
             channels = "colour"
-            outline = face_outline(img, face_mask, thin_strips=thin_strips, blur_domain="linear")
+            outline = face_outline(img, face_mask, thin_strips=thin_strips, blur_domain="linear", faint_sides=faint)
         grown = set()
         while not outline and (side := _side_to_grow(outline)) is not None and side not in grown:
             # a side with no contrast at all was cut inside one uniform region: the outline there is
@@ -444,7 +455,8 @@ def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, comp
             # while the estimate of them came out 30 % off.)
             grown.add(side)
             face_mask = extended_to_blob(face_mask, det.mask, side)
-            outline = face_outline(img, face_mask, thin_strips=thin_strips, channels=channels, blur_domain="linear")
+            outline = face_outline(img, face_mask, thin_strips=thin_strips, channels=channels, blur_domain="linear",
+                                   faint_sides=faint)
         if not outline:
             # a face cut in two by a cast shadow's edge: the union with its other part (`same_material_faces`)
             face_mask, outline = next(unions(det, face_mask, channels, "linear"), (face_mask, outline))
@@ -486,7 +498,7 @@ def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, comp
             def encoded(j):
                 k, det, face_mask, channels = blurred[j]
                 outline = face_outline(img, face_mask, thin_strips=thin_strips, channels=channels,
-                                       blur_domain="encoded")
+                                       blur_domain="encoded", faint_sides=det.achromatic)
                 if not outline:  # cannot happen after a linear outline succeeded; keep that one
                     return None
                 meas = _measurement(img, det.mask, outline, measured[k][0].face_px, channels, compressed)
