@@ -2025,14 +2025,14 @@ uncertainty (`depth.estimate.EDGE_BIAS_PX_BLURRED`)."""
 _ESF_SCALES = np.arange(0.6, 1.81, 0.2)  # ramp widths tried (px): sharper or blurred optics
 
 
-def _esf_side(linear, lines, quads, corners, i, inner, margin, min_contrast, reach=None):
+def _esf_side(linear, lines, quads, corners, i, inner, margin, min_contrast):
     """`_esf_side_mode` on chroma (blind to a grey background's texture), then on the full
     colour (which sees a strip of the face's chroma but another brightness against grey) where
     chroma finds no strip or no distinct one (a darker strip of the face's hue lies, in chroma, on
     the line between the face and a grey outside: distinct only in full colour)."""
-    res = _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast, True, reach)
+    res = _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast, True)
     if res is None or res[1] == 0.0 or not res[5]:
-        full = _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast, False, reach)
+        full = _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast, False)
         if full is not None and (res is None or (full[1] > 0.0 and (res[1] == 0.0 or full[5]))
                                  or (full[4] is not None and res[4] is None)):
             return full  # a strip, or an off-colour pixel that may be one
@@ -2389,8 +2389,10 @@ def _faint_side_faces(linear, model, strip, min_contrast) -> np.ndarray:
     The two-step model of `_esf_side_mode` is fitted once more with a band reaching `_FAINT_FACE_OUT_PX`
     beyond the side; a strip `_FAINT_FACE_MIN_PX` to `_FAINT_FACE_MAX_PX` wide that passes its tests is
     read, whatever its colour and however the side samples the pixel grid (a plateau that wide is no
-    blur's tail and no mixed pixel). Only where the pass found no thin strip beside either side (a cube
-    shows at most one of its left and right faces), and not where both sides read one."""
+    blur's tail and no mixed pixel). In full colour only: the faces of a cube without colour differ from
+    what lies beyond them in brightness (on chroma as well, the look took half the outline's time). Only
+    where the pass found no thin strip beside either side (a cube shows at most one of its left and right
+    faces), and not where both sides read one."""
     lines, quads, corners = model[0], model[1], model[2]
     out = np.zeros(2)
     if strip[0] > 0 or strip[1] > 0:
@@ -2398,8 +2400,8 @@ def _faint_side_faces(linear, model, strip, min_contrast) -> np.ndarray:
     tl, tr, br, bl = corners
     inner = float(np.clip(0.25 * ((tr[0] - tl[0]) + (br[0] - bl[0])) + 0.5, 1.5, 4.0))
     for i in (0, 1):
-        res = _esf_side(linear, lines, quads, corners, i, inner, 2.5, min_contrast,
-                        reach=(_FAINT_FACE_OUT_PX, _FAINT_FACE_MAX_PX, _FAINT_FACE_MIN_PX, _FAINT_FACE_MIN_CONTRAST))
+        res = _esf_side_mode(linear, lines, quads, corners, i, inner, 2.5, min_contrast, False,
+                             (_FAINT_FACE_OUT_PX, _FAINT_FACE_MAX_PX, _FAINT_FACE_MIN_PX, _FAINT_FACE_MIN_CONTRAST))
         # its inner step is the face's edge, where the side was fitted (a strip found inside the face is
         # the face's own shading: a floor scene's grey face read 2.6 px in, its cube then 24 % off)
         if res is not None and res[5] and res[1] >= _FAINT_FACE_MIN_PX and abs(res[0]) <= _FAINT_FACE_STEP_PX:
