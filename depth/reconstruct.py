@@ -400,11 +400,12 @@ def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, comp
         """An achromatic detection grown across faint edges (`faint_regrowth`), usable and touching no
         other blob: each such reading, one per (blur, steps) of `FAINT_EDGE_READINGS` in turn (without
         `fainter`, only those at `FAINT_EDGE_CONTRAST`)."""
+        gradients = {}  # each window's gradient per blur, shared by the readings at that blur
         for smoothing, contrast in FAINT_EDGE_READINGS:
             if not fainter and contrast != FAINT_EDGE_CONTRAST:
                 continue
             grown = faint_regrowth(det_img, mask, det, compressed=compressed, smoothing_px=smoothing,
-                                   contrast=contrast)
+                                   contrast=contrast, gradients=gradients)
             if grown is None or grown.reason:
                 continue
             ring = cv2.dilate(grown.mask.view(np.uint8), np.ones((5, 5), np.uint8)).view(bool)
