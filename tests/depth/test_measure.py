@@ -499,6 +499,58 @@ def test_a_white_face_whose_faint_blue_step_jpeg_smears_is_regrown_at_the_fainte
     assert iou(*fainter[0]) > 0.85
 
 
+def test_readings_in_turn_that_share_their_gradients_find_what_each_finds_alone():
+    """`faint_regrowth`'s readings in turn, as `reconstruct` makes them, sharing one `gradients` dict (each
+    window's gradient computed once per blur): each reading finds the detection it finds alone, mask for
+    mask, on the JPEG case above, whose first readings fail in both windows and whose fainter ones grow
+    it. The dict is refused for another image."""
+    from depth.reconstruct import despeckled
+
+    cube = faint_white_cube(0.51)
+    image, mirror = make_image((200, 240), [cube], background="warm ramp", noise=2 / 255, seed=0)
+    face = pixel_truth(image.shape[:2], cube, "face")
+    plain, _ = make_image(image.shape[:2], [], background="warm ramp", noise=2 / 255, seed=0)
+    (found,) = detect_cubes(despeckled(jpeg(np.where(face[..., None], plain, image))), mirror, compressed=True)
+    compressed = despeckled(jpeg(image))
+    shared = {}
+    grown_any = False
+    for smoothing, contrast in FAINT_EDGE_READINGS:
+        kw = {"compressed": True, "smoothing_px": smoothing, "contrast": contrast}
+        alone = faint_regrowth(compressed, mirror, found, **kw)
+        together = faint_regrowth(compressed, mirror, found, gradients=shared, **kw)
+        assert (alone is None) == (together is None)
+        if alone is not None:
+            grown_any = True
+            for a, b in ((alone.mask, together.mask), (alone.front_face_mask, together.front_face_mask)):
+                np.testing.assert_array_equal(a, b)
+    assert grown_any
+    assert len(shared) > 1 + len(FAINT_EDGE_SMOOTHING_PX)  # the image, and gradients in both windows
+    with pytest.raises(ValueError, match="another image"):
+        faint_regrowth(compressed.copy(), mirror, found, compressed=True, gradients=shared)
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.integers(3, 40), st.integers(3, 40), st.sampled_from([1.0, 1.5, 2.0]), st.integers(0, 2**32 - 1))
+def test_the_edge_gradient_is_the_sobel_of_the_channel_with_the_largest_one(height, width, sigma, seed):
+    """`_channel_gradient` against a reference written apart: scipy's Sobel (its "mirror" border is
+    OpenCV's default, reflect-101) of each blurred 8-bit channel, the channel of the largest |dx| + |dy|
+    taken per pixel (the first of equal ones)."""
+    import cv2
+    import scipy.ndimage
+
+    from depth.measure import _channel_gradient
+
+    rgb = np.random.default_rng(seed).random((height, width, 3))
+    rgb[:, : width // 2] *= 0.2  # a step, beside the noise
+    u8 = cv2.GaussianBlur(np.round(rgb * 255.0).astype(np.uint8), (0, 0), sigma).astype(np.int64)
+    gx = np.stack([scipy.ndimage.sobel(u8[..., k], axis=1, mode="mirror") for k in range(3)], axis=-1)
+    gy = np.stack([scipy.ndimage.sobel(u8[..., k], axis=0, mode="mirror") for k in range(3)], axis=-1)
+    pick = np.argmax(np.abs(gx) + np.abs(gy), axis=-1)[..., None]
+    dx, dy = _channel_gradient(rgb, sigma)
+    np.testing.assert_array_equal(dx, np.take_along_axis(gx, pick, axis=-1)[..., 0])
+    np.testing.assert_array_equal(dy, np.take_along_axis(gy, pick, axis=-1)[..., 0])
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_a_white_face_found_as_its_thin_top_face_alone_is_regrown_whole(seed):
     """A white cube whose front face (24 × 109 px) is as bright as the "ramp" sky, with a dark top face
