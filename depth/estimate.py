@@ -784,7 +784,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         along the point's row (left/right) or column (top/bottom) is the largest crossing of a face's
         edge, and the residual is the point's coordinate minus that extent. A point beyond
         the union's span keeps its front-edge residual. (Its divisions by zero are silenced by `_exact`'s
-        errstate: a context of its own on each call took 7 % of its time.)"""
+        errstate: a context of its own on each call took 6 % of its time, line-profiled.)"""
         s1 = s[:, None]
         dn = axes[:, 2] @ r.T
         shift_a, shift_b = s1 * (axes[:, 0] @ r.T / dn), s1 * (axes[:, 1] @ r.T / dn)  # (K, N): a back vertex's move

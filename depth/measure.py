@@ -584,9 +584,10 @@ def faint_regrowth(image: np.ndarray, mirror_mask: np.ndarray, detection: CubeDe
     are split as `detect_cubes` does; the detection returned is achromatic, with `reason` set where
     it is cut by the mirror's edge or its faces cannot be separated.
 
-    `gradients`: a dict (empty at first) shared by calls on one `image` and `detection`, for readings
-    in turn: each window's blurred gradient is then computed once per blur (the faint and the fainter
-    readings of one blur share it). A dict first used with another image is refused (ValueError).
+    `gradients`: a dict (empty at first) shared by calls on one `image`, for readings in turn: each
+    window's blurred gradient is then computed once per blur (the faint and the fainter readings of one
+    blur share it; it is keyed by the window, so several detections may share the dict too, at the cost
+    of holding every window's gradients). A dict first used with another image is refused (ValueError).
     """
     if gradients is not None and gradients.setdefault("image", image) is not image:
         raise ValueError("faint_regrowth: `gradients` holds another image's gradients")
