@@ -2327,6 +2327,15 @@ def _parabola_min(x: np.ndarray, y: np.ndarray, k: int) -> float:
     return float(x[k] + 0.5 * (x[k + 1] - x[k]) * (y0 - y2) / den)
 
 
+def _esf_inner_px(corners, i) -> float:
+    """How far (px) inside side i (left, right, top, bottom) of the face with `corners` (tl, tr, br, bl)
+    the edge-spread profile starts: half the face's width (left and right) or height (top and bottom)
+    plus half a pixel, within 1.5–4 px."""
+    tl, tr, br, bl = corners
+    span = 0.5 * ((tr[0] - tl[0]) + (br[0] - bl[0])) if i < 2 else 0.5 * ((bl[1] - tl[1]) + (br[1] - tr[1]))
+    return float(np.clip(0.5 * span + 0.5, 1.5, 4.0))
+
+
 def _esf_pass(linear, model, min_contrast, margin=2.5, sides=range(4)):
     """Shift each side of a refined model to its edge found by `_esf_side`.
 
@@ -2338,16 +2347,11 @@ def _esf_pass(linear, model, min_contrast, margin=2.5, sides=range(4)):
     which = [int(i) for i in sides]
     lines, quads, corners, sides, normals, rms, contrast, residuals = model
     lines, quads = lines.copy(), quads.copy()
-    tl, tr, br, bl = corners
-    width = 0.5 * ((tr[0] - tl[0]) + (br[0] - bl[0]))
-    height = 0.5 * ((bl[1] - tl[1]) + (br[1] - tr[1]))
     strip = np.zeros(4)
     new_sides = list(sides)
     found = {}
     for i in which:
-        span = width if i < 2 else height
-        inner = float(np.clip(0.5 * span + 0.5, 1.5, 4.0))
-        res = _esf_side(linear, model[0], model[1], corners, i, inner, margin, min_contrast)
+        res = _esf_side(linear, model[0], model[1], corners, i, _esf_inner_px(corners, i), margin, min_contrast)
         if res is not None:
             found[i] = res
     # a blurred image (edges wider than a pixel on every side) hides a thin strip's steps in the
@@ -2419,10 +2423,8 @@ def _faint_side_faces(linear, model, strip, min_contrast) -> np.ndarray:
     out = np.zeros(2)
     if strip[0] > 0 or strip[1] > 0:
         return out
-    tl, tr, br, bl = corners
-    inner = float(np.clip(0.25 * ((tr[0] - tl[0]) + (br[0] - bl[0])) + 0.5, 1.5, 4.0))
     for i in (0, 1):
-        res = _esf_side_mode(linear, lines, quads, corners, i, inner, 2.5, min_contrast, False,
+        res = _esf_side_mode(linear, lines, quads, corners, i, _esf_inner_px(corners, i), 2.5, min_contrast, False,
                              (_FAINT_FACE_OUT_PX, _FAINT_FACE_MAX_PX, _FAINT_FACE_MIN_PX, _FAINT_FACE_MIN_CONTRAST))
         # its inner step is the face's edge, where the side was fitted (a strip found inside the face is
         # the face's own shading: a floor scene's grey face read 2.6 px in, its cube then 24 % off)

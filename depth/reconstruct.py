@@ -151,9 +151,8 @@ def _measurement(img, blob_mask, outline, face_px, channels, compressed):
     # A side face the blob left out (`FaceOutline.faint_side_px`): its outer edge is the back vertical edge
     # the silhouette would have shown, where the silhouette shows no face beside either side (a cube shows
     # at most one of its left and right faces). The edge runs parallel to the side's points, that far out.
-    shown = [backs[k] is not None or gaps[k] > no_gap for k in (0, 1)]
-    for k in (0, 1):
-        if outline.faint_side_px[k] > 0.0 and not any(shown):
+    if not any(backs[k] is not None or gaps[k] > no_gap for k in (0, 1)):
+        for k in np.flatnonzero(outline.faint_side_px > 0.0):
             backs[k] = outline.sides[k] + outline.faint_side_px[k] * outline.normals[k]
             gaps[k] = float(outline.faint_side_px[k])
     return FaceMeasurement(tuple(outline.sides), outline.corners_px, face_px, outline.edge_noise_px,
