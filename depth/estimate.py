@@ -664,7 +664,7 @@ def _face_extent_px(directions, sgn, size, along, normal, px_per_m) -> np.ndarra
 # warnings would only alarm the user.
 @np.errstate(over="ignore", invalid="ignore", divide="ignore")
 def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local: LocalXSlit,
-           cube_size: float | None, up=None) -> CubeEstimate | FailedEstimate:
+           cube_size: float | None, up=None, defer: bool = False):
     """Non-central PnP of the square face (and its back vertical edges) from exact per-pixel rays.
 
     Residuals are pixel-like: each is a metric offset in the face (or side) plane divided by its
@@ -673,6 +673,11 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     face (turned about `up` only) from several starting turns (when the outline is the outer
     contour, the face is first placed at each turn: ddar's centre and size fit none of them);
     stage 2 frees the tilt only when the upright face misfits the edges.
+
+    Returns a `CubeEstimate` or a `FailedEstimate`; with `defer`, a fitted face comes as (its estimate
+    with the first-order σ, a function giving the estimate with its σ complete): `estimate_face` fits
+    some faces twice and keeps one, and the turn profile the σ reads (`sigma_profile`) is then run for
+    that one alone.
     """
     sides = []
     for i, sp in enumerate(meas.sides_px):
@@ -1164,36 +1169,50 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         jac_d[:, k] = (derived(x_best + dx) - derived(x_best - dx)) / 2e-6
     cov_d = jac_d @ cov @ jac_d.T
     sd = np.sqrt(np.maximum(np.diag(cov_d), 0.0))
-    std = {"z": float(sd[4]), "size": float(sd[3]), "center": float(np.sqrt(np.sum(sd[:3] ** 2)))}
-    if log:
-        # With merged faces the cost along the turn is flat, and kinks where a face comes into view
-        # can pin the fit: the first-order σ, from the slopes at one pose, then says little about how
-        # far the turn could be. The profiled poses are weighted by their likelihood, their costs read
-        # at the point scatter widened as the side offsets widen the turn (`covariance`), and each
-        # σ is at least their spread about the estimate (small faces: 7 of 24 beyond 3 σ, up to 10.5).
-        # The profile that chose the turn placed each face short of its best; the turn is profiled
-        # again about the estimate with each face placed (`sigma_profile`), and its poses weigh in too:
-        # a dark cube of an unseen render, 32 % off, whose misfit halves 14° on, was reported 21 σ off.
-        lik_scale = scales["sigma2"] * scales["inflation"]
-        poses = log + sigma_profile(x_best, lik_scale) + [(x_best, pixel_weights(x_best))]
-        cost = np.array(costs(poses))
-        lik = np.exp(-(cost - cost.min()) / lik_scale)
-        spread = np.array([derived(x) for x, _ in poses]) - f0
-        var = lik @ spread ** 2 / lik.sum()
-        std = {"z": max(std["z"], float(np.sqrt(var[4]))), "size": max(std["size"], float(np.sqrt(var[3]))),
-               "center": max(std["center"], float(np.sqrt(np.sum(var[:3]))))}
-    if overruled is not None:
-        # The edges preferred the other reading of a top or bottom face and the silhouette chose this
-        # one; a top face as bright as the sky behind it fools the silhouette (no part of the blob,
-        # it looks absent), so either reading may be the cube: each σ covers half their difference
-        # (as an even mixture of the two would). Our render of a grey cube turned 15° under a sun from
-        # above, the background as bright as its top face: 9.2 % off, −5.2 σ before.
-        half = 0.5 * (derived(overruled) - f0)
-        std = {"z": float(np.hypot(std["z"], half[4])), "size": float(np.hypot(std["size"], half[3])),
-               "center": float(np.sqrt(std["center"] ** 2 + np.sum(half[:3] ** 2)))}
-    return CubeEstimate(method="exact", center=f0[:3], size=float(s), z=float(f0[4]), front_face_center=c,
-                        normal=normal, aspect_ratio=start.aspect_ratio, std=std,
-                        xslit=start.xslit, rms_residual=rms)
+    first_order = {"z": float(sd[4]), "size": float(sd[3]), "center": float(np.sqrt(np.sum(sd[:3] ** 2)))}
+
+    def complete_std(std):
+        """The first-order σ widened by the turn profiles and by a reading the silhouette overruled."""
+        if log:
+            # With merged faces the cost along the turn is flat, and kinks where a face comes into view
+            # can pin the fit: the first-order σ, from the slopes at one pose, then says little about how
+            # far the turn could be. The profiled poses are weighted by their likelihood, their costs read
+            # at the point scatter widened as the side offsets widen the turn (`covariance`), and each
+            # σ is at least their spread about the estimate (small faces: 7 of 24 beyond 3 σ, up to 10.5).
+            # The profile that chose the turn placed each face short of its best; the turn is profiled
+            # again about the estimate with each face placed (`sigma_profile`), and its poses weigh in too:
+            # a dark cube of an unseen render, 32 % off, whose misfit halves 14° on, was reported 21 σ off.
+            lik_scale = scales["sigma2"] * scales["inflation"]
+            poses = log + sigma_profile(x_best, lik_scale) + [(x_best, pixel_weights(x_best))]
+            cost = np.array(costs(poses))
+            lik = np.exp(-(cost - cost.min()) / lik_scale)
+            spread = np.array([derived(x) for x, _ in poses]) - f0
+            var = lik @ spread ** 2 / lik.sum()
+            std = {"z": max(std["z"], float(np.sqrt(var[4]))), "size": max(std["size"], float(np.sqrt(var[3]))),
+                   "center": max(std["center"], float(np.sqrt(np.sum(var[:3]))))}
+        if overruled is not None:
+            # The edges preferred the other reading of a top or bottom face and the silhouette chose this
+            # one; a top face as bright as the sky behind it fools the silhouette (no part of the blob,
+            # it looks absent), so either reading may be the cube: each σ covers half their difference
+            # (as an even mixture of the two would). Our render of a grey cube turned 15° under a sun from
+            # above, the background as bright as its top face: 9.2 % off, −5.2 σ before.
+            half = 0.5 * (derived(overruled) - f0)
+            std = {"z": float(np.hypot(std["z"], half[4])), "size": float(np.hypot(std["size"], half[3])),
+                   "center": float(np.sqrt(std["center"] ** 2 + np.sum(half[:3] ** 2)))}
+        return std
+
+    def estimate(std):
+        return CubeEstimate(method="exact", center=f0[:3], size=float(s), z=float(f0[4]), front_face_center=c,
+                            normal=normal, aspect_ratio=start.aspect_ratio, std=std,
+                            xslit=start.xslit, rms_residual=rms)
+
+    @np.errstate(over="ignore", invalid="ignore", divide="ignore")  # as `_exact`'s, when called after it
+    def completed():
+        return estimate(complete_std(first_order))
+
+    if defer:
+        return estimate(first_order), completed
+    return completed()
 
 
 def _prepare(rays: RayFunction, meas: FaceMeasurement, method: str, seed: int):
@@ -1284,20 +1303,22 @@ def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact
         return FailedEstimate(method, f"aspect ratio: {exc}")
     if method == "ddar":
         return start
-    est = _exact(rays, meas, start, local, cube_size, up)
     gaps = _side_gaps(meas)
     _, _, thin = _gap_readings(meas)
     if not thin:
-        return est
+        return _exact(rays, meas, start, local, cube_size, up)
     # A silhouette a few tenths of a pixel beyond a sharp face's side: a distinct side face that thin,
     # or one lit like the front face and merged into its outline but for its last tenths of a pixel.
     # Both readings are fitted; the distinct one stands when its pose shows that side face about as
-    # wide as the gap (nearer to it than the contour reading's 0).
-    contour = _exact(rays, replace(meas, no_side_face_gap_px=NO_SIDE_FACE_GAP_PX), start, local, cube_size, up)
+    # wide as the gap (nearer to it than the contour reading's 0). The σ is completed for that one.
+    est = _exact(rays, meas, start, local, cube_size, up, defer=True)
+    contour = _exact(rays, replace(meas, no_side_face_gap_px=NO_SIDE_FACE_GAP_PX), start, local, cube_size, up,
+                     defer=True)
     if not est or not contour:
-        return est or contour
-    widths = [_side_face_width_px(rays, meas.sides_px[k], est, _vertical(local, up)) for k in thin]
-    return est if all(abs(w - gaps[k]) < gaps[k] for w, k in zip(widths, thin)) else contour
+        kept = est or contour
+        return kept[1]() if isinstance(kept, tuple) else kept
+    widths = [_side_face_width_px(rays, meas.sides_px[k], est[0], _vertical(local, up)) for k in thin]
+    return (est if all(abs(w - gaps[k]) < gaps[k] for w, k in zip(widths, thin)) else contour)[1]()
 
 
 def _vertical(local: LocalXSlit, up) -> np.ndarray:

@@ -960,3 +960,27 @@ def test_the_depth_sigma_of_a_merged_turned_face_covers_the_turns_that_fit_as_we
     depth = float(mirror.distance_to_axis(np.array([[-0.12547, 0.04315, 0.64047]]))[0])
     assert abs(found.depth - depth) < 3.0 * found.depth_std
     assert found.depth_std < 0.5 * depth
+
+
+def test_a_face_fitted_both_ways_gets_the_complete_sigma_of_the_reading_kept(rig):
+    """A thin gap is fitted both ways and one reading kept (`estimate_face`); the σ's turn profiles run
+    for that one alone (`_exact(..., defer=True)`). The estimate and its σ must be those `_exact` gives
+    that reading on its own, and never under its first-order σ. (Where the profiles widen the σ, the
+    Mitsuba crop of `test_the_depth_sigma_of_a_merged_turned_face_covers_the_turns_that_fit_as_well`,
+    a thin gap too, fails when the first-order σ is kept.)"""
+    from depth.estimate import _ddar, _exact, _prepare
+    cube = rig.cube(0.5, 5.0, yaw_deg=15.0)
+    merged = rig.measure(cube, merged=True)
+    k = int(np.argmax(rig.measure(cube, gaps=True).side_gaps_px))
+    gaps = [0.0, 0.0]
+    gaps[k] = 0.4
+    meas = dataclasses.replace(merged, side_gaps_px=tuple(gaps), no_side_face_gap_px=NO_SIDE_FACE_GAP_PX_SHARP)
+    est = estimate_face(rig.rays, meas, method="exact", up=rig.mirror.axis)
+    contour = dataclasses.replace(meas, no_side_face_gap_px=NO_SIDE_FACE_GAP_PX)
+    local, kap = _prepare(rig.rays, contour, "exact", 0)
+    alone = _exact(rig.rays, contour, _ddar(local, kap, None), local, None, rig.mirror.axis)
+    first, complete = _exact(rig.rays, contour, _ddar(local, kap, None), local, None, rig.mirror.axis, defer=True)
+    assert np.allclose(est.center, alone.center, rtol=0, atol=1e-12)
+    assert est.std == alone.std == complete().std
+    assert np.allclose(first.center, est.center, rtol=0, atol=1e-12)
+    assert all(first.std[key] <= est.std[key] for key in ("z", "size", "center"))
