@@ -970,35 +970,49 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         weight = keep
         return out
 
+    def walk_turns(x_best, place, lik_scale=None):
+        """The turn stepped from x_best outward each way in PROFILE_STEP steps, the face placed at each
+        turn by place(previous pose, turn) at the previous pose's pixel scales: the fit (pose, pixel
+        scales) and per step (pose, pixel scales, cost over the fit's at their common scales). Stops
+        going one way once that ratio, rising, exceeds PROFILE_STOP, or, given `lik_scale`, once the
+        cost exceeds the lowest seen by SIGMA_PROFILE_STOP times it."""
+        nonlocal weight
+        keep = weight
+        fitted = (x_best, pixel_weights(x_best))
+        steps = []
+        for direction in (-1.0, 1.0):
+            x, w = fitted
+            prev, lowest = 1.0, 0.0
+            for k in range(1, int(PROFILE_SPAN / PROFILE_STEP) + 1):
+                t = x_best[0] + direction * k * PROFILE_STEP
+                if abs(t) > lim:
+                    break
+                weight = w  # the scales of the previous turn's pose
+                x = place(x, t)
+                w = pixel_weights(x)
+                c, c0 = costs([(x, w), fitted])
+                ratio = c / max(c0, 1e-12)
+                steps.append((x, w, ratio))
+                if ratio > prev and (ratio > PROFILE_STOP or (
+                        lik_scale is not None and c - c0 - lowest > SIGMA_PROFILE_STOP * lik_scale)):
+                    break
+                prev, lowest = ratio, min(lowest, c - c0)
+        weight = keep
+        return fitted, steps
+
     def profiled(x_best):
         """The turn profiled: from the fitted turn outward in PROFILE_STEP steps, the face placed
         (centre and size) at each turn, each compared with the fit at its own pixel scales; where one
         fits better, the fit is finished from there. None when none does."""
         nonlocal weight
         keep = weight
-        fitted = (x_best, pixel_weights(x_best))
+        fitted, steps = walk_turns(x_best, lambda x, t: np.r_[t, 0.0, 0.0, fit_lsq(
+            x[3:7], placed, np.r_[t, np.zeros(6)], **dict(opts, max_nfev=PLACE_NFEV)).x])
+        profile_log[:] = [(x, w) for x, w, _ in steps]
         best, gain = None, 1.0
-        profile_log.clear()
-        for direction in (-1.0, 1.0):
-            x, w = fitted
-            prev = 1.0
-            for k in range(1, int(PROFILE_SPAN / PROFILE_STEP) + 1):
-                t = x_best[0] + direction * k * PROFILE_STEP
-                if abs(t) > lim:
-                    break
-                weight = w  # the scales of the previous turn's pose
-
-                x = np.r_[t, 0.0, 0.0, fit_lsq(x[3:7], placed, np.r_[t, np.zeros(6)], **dict(opts, max_nfev=PLACE_NFEV)).x]
-                w = pixel_weights(x)
-                profile_log.append((x, w))
-                c, c0 = costs([(x, w), fitted])
-                ratio = c / max(c0, 1e-12)
-                if ratio < gain:
-                    best, gain = (x, w), ratio
-                if ratio > PROFILE_STOP and ratio > prev:
-                    break
-                prev = ratio
-        weight = keep
+        for x, w, ratio in steps:
+            if ratio < gain:
+                best, gain = (x, w), ratio
         if best is None:
             return None
         # Finished at its own pixel scales, re-measured at every step: with scales held at one pose
@@ -1019,32 +1033,12 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         centre and log size, themselves near 0, so that its 8 evaluations leave the face short of
         placed. `profiled` still chooses the estimate from those: with its faces placed in full it chose
         worse (bench/README, forty-fifth session). The σ reads the turns that fit as well or better
-        here. Stops going one way as `profiled` does, or once the cost, rising, exceeds the lowest seen
-        by SIGMA_PROFILE_STOP times `lik_scale`. The (pose, pixel scales) of each turn."""
-        nonlocal weight
-        keep = weight
-        fitted = (x_best, pixel_weights(x_best))
-        out = []
-        for direction in (-1.0, 1.0):
-            x, w = fitted
-            prev, lowest = 1.0, 0.0
-            for k in range(1, int(PROFILE_SPAN / PROFILE_STEP) + 1):
-                t = x_best[0] + direction * k * PROFILE_STEP
-                if abs(t) > lim:
-                    break
-                weight = w  # the scales of the previous turn's pose
-                moved = fit_lsq(np.zeros(4), placed, np.r_[t, 0.0, 0.0, x[3:7]], offset=True,
-                                **dict(opts, max_nfev=PLACE_NFEV)).x
-                x = np.r_[t, 0.0, 0.0, x[3:7] + moved]
-                w = pixel_weights(x)
-                out.append((x, w))
-                c, c0 = costs([(x, w), fitted])
-                ratio = c / max(c0, 1e-12)
-                if ratio > prev and (ratio > PROFILE_STOP or c - c0 - lowest > SIGMA_PROFILE_STOP * lik_scale):
-                    break
-                prev, lowest = ratio, min(lowest, c - c0)
-        weight = keep
-        return out
+        here. The (pose, pixel scales) of each turn."""
+        def place(x, t):
+            x_fixed = np.r_[t, 0.0, 0.0, x[3:7]]
+            return x_fixed + np.r_[np.zeros(3), fit_lsq(np.zeros(4), placed, x_fixed, offset=True,
+                                                         **dict(opts, max_nfev=PLACE_NFEV)).x]
+        return [(x, w) for x, w, _ in walk_turns(x_best, place, lik_scale)[1]]
 
     def fit():
         """Stage 1 and (when needed) stage 2: (x, covariance) or None."""
