@@ -101,8 +101,8 @@ PROFILE_GAIN = 0.98
 SIGMA_PROFILE_STOP = 20.0
 """The turn profile run for `exact`'s σ alone (`sigma_profile`) also stops going one way once the cost
 there, rising, exceeds the lowest seen by this many times the scale its likelihood is read at: a pose
-there weighs under e^-20 of the best. Its poses then beyond that point, recorded on the holdouts and
-the lighting bench (481 profiles), would have changed one σ by 3 %, and a quarter of the steps are saved."""
+there weighs under e^-20 of the best. Recorded on the holdouts and the lighting bench (481 profiles), the
+poses beyond that point would have changed one profile's spread by 3 %; a quarter of the steps are saved."""
 
 MERGED_TOP_PX = 1.0
 """A top or bottom face that the fitted pose shows taller than this (px) where the image shows no
@@ -1033,12 +1033,12 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         centre and log size, themselves near 0, so that its 8 evaluations leave the face short of
         placed. `profiled` still chooses the estimate from those: with its faces placed in full it chose
         worse (bench/README, forty-fifth session). The σ reads the turns that fit as well or better
-        here. The (pose, pixel scales) of each turn."""
+        here. As `walk_turns`: the fit's (pose, pixel scales) and per turn (pose, pixel scales, ratio)."""
         def place(x, t):
             x_fixed = np.r_[t, 0.0, 0.0, x[3:7]]
             return x_fixed + np.r_[np.zeros(3), fit_lsq(np.zeros(4), placed, x_fixed, offset=True,
                                                          **dict(opts, max_nfev=PLACE_NFEV)).x]
-        return [(x, w) for x, w, _ in walk_turns(x_best, place, lik_scale)[1]]
+        return walk_turns(x_best, place, lik_scale)
 
     def fit():
         """Stage 1 and (when needed) stage 2: (x, covariance) or None."""
@@ -1177,7 +1177,8 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             # again about the estimate with each face placed (`sigma_profile`), and its poses weigh in too:
             # a dark cube of an unseen render, 32 % off, whose misfit halves 14° on, was reported 21 σ off.
             lik_scale = scales["sigma2"] * scales["inflation"]
-            poses = log + sigma_profile(x_best, lik_scale) + [(x_best, pixel_weights(x_best))]
+            fitted, steps = sigma_profile(x_best, lik_scale)
+            poses = log + [(x, w) for x, w, _ in steps] + [fitted]
             cost = np.array(costs(poses))
             lik = np.exp(-(cost - cost.min()) / lik_scale)
             spread = np.array([derived(x) for x, _ in poses]) - f0
