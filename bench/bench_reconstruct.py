@@ -117,6 +117,11 @@ def score(result_cubes: list, truth: list, kinds: list, turns: list, tol_px: flo
             row["size_err"] = float(c["size"] / t["size"] - 1.0)
             row["corner_err_px"] = _corner_error_px(np.asarray(c["front_face_corners_px"]), np.asarray(t["front_face_corners_px"]))
             row["edge_misfit_px"] = c.get("edge_misfit_px")
+            # the estimated face's tilt out of the vertical: its normal's angle with the true face's plane's
+            # vertical edge's normal plane (0 for a face upright as the truth; the truth cubes are upright)
+            edge = np.subtract(t["front_face_corners"][0], t["front_face_corners"][3])
+            n = np.asarray(c["front_face_normal"])
+            row["tilt_deg"] = float(np.degrees(np.arcsin(min(abs(n @ edge) / np.linalg.norm(edge) / np.linalg.norm(n), 1.0))))
             # error in units of the reported first-order standard deviation
             unc = c.get("uncertainty", {})
             for key in ("depth", "size"):

@@ -59,7 +59,8 @@ def main(argv=None) -> int:
             depth = float(mir.distance_to_axis(c[None])[0])
             res[f"{i}/{j}"] = {"centre_err_pct": float(np.linalg.norm(cube.estimate.center - c) / depth * 100),
                                "depth_sigmas": float((cube.depth - depth) / cube.depth_std),
-                               "turn_deg": float(sc.turn_deg[j]), "misfit_px": float(cube.estimate.rms_residual)}
+                               "turn_deg": float(sc.turn_deg[j]), "misfit_px": float(cube.estimate.rms_residual),
+                               "tilt_deg": float(np.degrees(np.arcsin(min(abs(float(cube.estimate.normal @ mir.axis)), 1.0))))}
         for j in range(len(truth)):
             res.setdefault(f"{i}/{j}", None)
         cells = [f"{j}: " + ("missed" if res[f"{i}/{j}"] is None else
