@@ -984,3 +984,35 @@ def test_a_face_fitted_both_ways_gets_the_complete_sigma_of_the_reading_kept(rig
     assert est.std == alone.std == complete().std
     assert np.allclose(first.center, est.center, rtol=0, atol=1e-12)
     assert all(first.std[key] <= est.std[key] for key in ("z", "size", "center"))
+
+
+MITSUBA_JPEG_HORIZON = Path(__file__).resolve().parents[1] / "data" / "mitsuba_grey_8080_s3_4_jpeg.png"
+"""A 66×155 crop, from (1193, 791), of a Mitsuba 3 render (16 spp) put through the reconstruct bench's JPEG
+coder (OpenCV, quality 90; the holdout `python -m bench.holdout 8080 --jpeg`, scene 3, cube 4): a dark grey
+cube 5.53 cm across, upright, crossing the horizon, whose left side's edge points jump about 2 px where
+the horizon crosses it."""
+
+
+def test_the_sigma_of_a_tilt_that_still_misfits_covers_the_upright_reading():
+    """No upright face explains this cube's edges (0.65 px rms: its left side's jump) and a face tilted
+    38° with its top face merged fits them at 0.28 px, past the upright limit too. The tilted reading is
+    59 % off and its first-order σ said ±3 % in depth (17.6 σ off). Where neither reading explains the
+    edges, the σ must cover the depth (within 3 σ). The camera is the render's, its principal point moved
+    to the crop's."""
+    import cv2
+
+    from depth.reconstruct import reconstruct
+    from raytrace.camera import PinholeCamera
+    from raytrace.mirror import CylinderMirror
+
+    image = cv2.cvtColor(cv2.imread(str(MITSUBA_JPEG_HORIZON)), cv2.COLOR_BGR2RGB)
+    pitch = 0.0021745963572879184
+    rotation = [[1.0, 0.0, 0.0], [0.0, -np.sqrt(1.0 - pitch ** 2), pitch], [0.0, -pitch, -np.sqrt(1.0 - pitch ** 2)]]
+    camera = PinholeCamera((66, 155), [[2360.471, 0.0, 1023.5 - 1193], [0.0, 2360.471, 767.5 - 791], [0.0, 0.0, 1.0]],
+                           rotation, (0.0, 0.00103, 0.47365))
+    mirror = CylinderMirror(0.1134, 0.52049, (0, 0, 0), (0, 1, 0))
+    rec = reconstruct(image, camera, mirror, compressed=True, workers=1)
+    assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
+    (found,) = rec.cubes
+    depth = float(mirror.distance_to_axis(np.array([[0.57058, -0.05473, 0.83237]]))[0])
+    assert abs(found.depth - depth) < 3.0 * found.depth_std
