@@ -1194,22 +1194,25 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         if untilted is not None:
             # Neither the tilted nor the upright face explains the edges (both past UPRIGHT_MISFIT_PX); the
             # tilted one fits them better, but the edges' misfit may be a stretch of them read off, which a
-            # tilt follows: each σ covers half the two readings' difference, as for `overruled`. A
+            # tilt follows: each σ covers half the two readings' difference, as for `overruled` below. A
             # dark cube of an unseen JPEG render, crossing the horizon: tilted 38° (0.28 px against the
             # upright 0.65 px), 59 % off, −17.6 σ.
-            half = 0.5 * (derived(untilted) - f0)
-            std = {"z": float(np.hypot(std["z"], half[4])), "size": float(np.hypot(std["size"], half[3])),
-                   "center": float(np.sqrt(std["center"] ** 2 + np.sum(half[:3] ** 2)))}
+            std = covering_half(std, untilted)
         if overruled is not None:
             # The edges preferred the other reading of a top or bottom face and the silhouette chose this
             # one; a top face as bright as the sky behind it fools the silhouette (no part of the blob,
             # it looks absent), so either reading may be the cube: each σ covers half their difference
             # (as an even mixture of the two would). Our render of a grey cube turned 15° under a sun from
             # above, the background as bright as its top face: 9.2 % off, −5.2 σ before.
-            half = 0.5 * (derived(overruled) - f0)
-            std = {"z": float(np.hypot(std["z"], half[4])), "size": float(np.hypot(std["size"], half[3])),
-                   "center": float(np.sqrt(std["center"] ** 2 + np.sum(half[:3] ** 2)))}
+            std = covering_half(std, overruled)
         return std
+
+    def covering_half(std, other):
+        """Each σ of `std` widened to cover half the difference from the reading at pose `other` (as an even
+        mixture of the two readings would)."""
+        half = 0.5 * (derived(other) - f0)
+        return {"z": float(np.hypot(std["z"], half[4])), "size": float(np.hypot(std["size"], half[3])),
+                "center": float(np.sqrt(std["center"] ** 2 + np.sum(half[:3] ** 2)))}
 
     def estimate(std):
         return CubeEstimate(method="exact", center=f0[:3], size=float(s), z=float(f0[4]), front_face_center=c,
