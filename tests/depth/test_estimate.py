@@ -996,7 +996,7 @@ the horizon crosses it."""
 def test_the_sigma_of_a_tilt_that_still_misfits_covers_the_upright_reading():
     """No upright face explains this cube's edges (0.65 px rms: its left side's jump) and a face tilted
     38° with its top face merged fits them at 0.28 px, past the upright limit too. The tilted reading is
-    59 % off and its first-order σ said ±3 % in depth (17.6 σ off). Where neither reading explains the
+    59 % off and its first-order σ said ±3.4 cm in depth (17.6 σ off). Where neither reading explains the
     edges, the σ must cover the depth (within 3 σ). The camera is the render's, its principal point moved
     to the crop's."""
     import cv2
