@@ -557,12 +557,17 @@ def test_a_white_face_found_as_its_thin_top_face_alone_is_regrown_whole(seed):
     13 px tall above it and no side face: detection finds the top face alone (holdout 8080 s2/0, as its
     bottom face). The first window, 20 px about that blob, reaches 20 px into the face, which runs on
     to the window's rim and is taken for background there; the wider window holds the whole face, and
-    the front face's mask comes out within IoU 0.9 of the truth, the top face beside it."""
+    the front face's mask comes out within IoU 0.9 of the truth, the top face beside it. Detection
+    itself now finds this face whole (its sides, under the strong step, are joined to the top face's
+    edge across the pixel Canny leaves at the corners: `_bridged_canny`); the top face alone, the blob
+    regrowth starts from, is what it finds with the front face hidden."""
     cube = dataclasses.replace(faint_white_cube(0.56), side=None, top_height=13.0, top_shade=0.25)
     image, mirror = make_image((200, 240), [cube], background="ramp", noise=2 / 255, seed=seed)
     face = pixel_truth(image.shape[:2], cube, "face")
-    (found,) = detect_cubes(image, mirror)
-    assert (found.mask & face).sum() < 0.1 * face.sum() and found.bbox[3] - found.bbox[1] < 20  # the top face
+    (direct,) = detect_cubes(image, mirror)
+    assert (direct.mask & face).sum() > 0.9 * face.sum()
+    found = found_without(image, mirror, cube, face, "ramp", 2 / 255, seed)
+    assert found.bbox[3] - found.bbox[1] < 20  # the top face
     grown = faint_regrowth(image, mirror, found)
     assert grown is not None and grown.usable and grown.achromatic
     iou = (grown.front_face_mask & face).sum() / (grown.front_face_mask | face).sum()
@@ -1429,6 +1434,52 @@ def test_a_face_shows_a_strip_on_one_of_its_left_and_right_sides_only():
     br, bl, tl, tr = BLUR_S15_2_CORNERS
     for pts, (p, q), reach in ((o.sides[0], (tl, bl), 0.25), (o.sides[1], (tr, br), 0.5)):
         assert abs(_mean_u_offset(pts, p, q)) < reach
+
+
+@pytest.mark.parametrize("gap, length, joined", [(1, 20, True), (2, 20, False), (1, 3, False)])
+def test_canny_chains_broken_by_one_pixel_are_joined_when_long(gap, length, joined):
+    """`_bridged_canny`: a chain of pixels above the weak step, under the strong step all along, is an
+    edge where a one-pixel gap separates it from a strong chain (Canny's own hysteresis drops it: it joins
+    touching pixels only), not across a gap of two pixels, and not when it is a fragment of 3 px (a
+    path tracer's noise inside a face)."""
+    import cv2
+
+    from depth.measure import _bridged_canny
+
+    # Sobel images of a vertical edge along column 10: rows 5-24 past the strong step, then after `gap`
+    # rows a stretch of `length` rows past the weak step only
+    dx = np.zeros((60, 30), np.int16)
+    dy = np.zeros((60, 30), np.int16)
+    dx[5:25, 10] = 100
+    start = 25 + gap
+    dx[start:start + length, 10] = 30
+    plain = cv2.Canny(dx, dy, 20, 40, L2gradient=True) > 0
+    bridged = _bridged_canny(dx, dy, 20, 40)
+    assert plain[5:25, 10].all() and not plain[start:start + length].any()
+    assert bridged[5:25, 10].all()
+    assert bridged[start:start + length, 10].all() == joined
+    assert not bridged[start:start + length].any() or joined
+    assert not (bridged & ~plain)[:, np.r_[0:10, 11:30]].any()
+
+
+MITSUBA_GREY_HORIZON = Path(__file__).resolve().parents[1] / "data" / "mitsuba_grey_8080_s1_3.png"
+"""An 89×155 crop, from (597, 725), of a Mitsuba 3 render (16 spp; the holdout `python -m bench.holdout 8080`,
+scene 1, cube 3): a light grey cube 2.8 cm across, 9 px wide, standing across the horizon, its left side
+face a 3 px ramp from the sky's level (196 of 255) to the face's (about 180)."""
+
+
+def test_a_light_grey_cube_whose_side_against_the_sky_is_faint_is_found():
+    """The cube's left side, against the sky, steps by under the strong step of `_enclosed`'s edges, and
+    Canny's chain of it broke off one pixel short both of the top side and of the horizon: the inside of
+    the cube ran into the sky and no region was found. Its front face (x 40.1–49.2, y 40.2–115.4 in the
+    crop, from `cube_truth`) must be found as one achromatic blob."""
+    image = _bench_crop(MITSUBA_GREY_HORIZON)
+    dets = [d for d in detect_cubes(image, np.ones(image.shape[:2], dtype=bool)) if d.usable]
+    assert len(dets) == 1
+    (det,) = dets
+    assert det.achromatic
+    u0, v0, u1, v1 = det.bbox
+    assert u0 <= 40 and u1 >= 49 and abs(v0 - 40) <= 2 and abs(v1 - 116) <= 2, det.bbox
 
 
 MITSUBA_WHITE = Path(__file__).resolve().parents[1] / "data" / "mitsuba_white_s3_0.png"
