@@ -899,33 +899,29 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         sigma2 = float(r[:n] @ r[:n]) / max(n - n_params, 1)  # point scatter (pixels²)
         bias2 = max(meas.edge_bias_px ** 2, float(np.mean(r[:n] ** 2)))
         jtj_inv = np.linalg.pinv(je.T @ je + jp.T @ jp)
-        meat = sigma2 * (je.T @ je) + jp.T @ jp
-        for side in range(6):
-            g = je[sid == side].sum(axis=0)
-            meat += bias2 * np.outer(g, g)
-        cov = jtj_inv @ meat @ jtj_inv
-        # how much the side offsets widen the turn's variance over the point scatter's (the first
-        # parameter is the turn): the scale at which costs along the turn profile are read
-        naive = sigma2 * jtj_inv[0, 0]
-        scales_at = {"sigma2": sigma2, "inflation": float(max(cov[0, 0] / naive, 1.0)) if naive > 0 else 1.0}
         # The σ returned takes each side at its own point scatter and misfit where they exceed the pooled
-        # ones. The pooled scatter is dominated by the long sides' many points; a short side whose points
-        # scatter far more (a JPEG image's bottom side over a fine checkered floor, ±0.4 px where the long
-        # sides hold 0.02 px) reads its slope, and so the turn and the depth, far less surely than that
+        # ones (`meat`). The pooled scatter is dominated by the long sides' many points; a short side whose
+        # points scatter far more (a JPEG image's bottom side over a fine checkered floor, ±0.4 px where the
+        # long sides hold 0.02 px) reads its slope, and so the turn and the depth, far less surely than that
         # says (a JPEG face 15 px wide, 38 % off, was +5.1 σ). Per side k: σ_k² = max(σ², mean r_k²·n/(n − p))
         # for its points' own scatter, b_k² = max(b², mean r_k²) for its common offset. The turn profile's
-        # likelihood scale above stays the pooled one.
+        # likelihood scale (below) stays the pooled one (`pooled`).
+        pooled = sigma2 * (je.T @ je) + jp.T @ jp
         meat = jp.T @ jp
         for side in range(6):
             on_side = sid == side
-            if not on_side.any():
-                continue
             j_side = je[on_side]
-            own = float(np.mean(r[:n][on_side] ** 2))  # this side's mean squared misfit (pixels²)
             g = j_side.sum(axis=0)
-            meat += max(sigma2, own * n / max(n - n_params, 1)) * (j_side.T @ j_side)
-            meat += max(bias2, own) * np.outer(g, g)
-        return jtj_inv @ meat @ jtj_inv, scales_at
+            pooled += bias2 * np.outer(g, g)
+            if on_side.any():
+                own = float(np.mean(r[:n][on_side] ** 2))  # this side's mean squared misfit (pixels²)
+                meat += max(sigma2, own * n / max(n - n_params, 1)) * (j_side.T @ j_side)
+                meat += max(bias2, own) * np.outer(g, g)
+        # how much the side offsets widen the turn's variance over the point scatter's (the first
+        # parameter is the turn): the scale at which costs along the turn profile are read
+        naive = sigma2 * jtj_inv[0, 0]
+        inflation = (jtj_inv @ pooled @ jtj_inv)[0, 0] / naive if naive > 0 else 1.0
+        return jtj_inv @ meat @ jtj_inv, {"sigma2": sigma2, "inflation": float(max(inflation, 1.0))}
 
     # The front face is the cube face nearest to facing the mirror: within 54.7° of it.
     lim = np.deg2rad(54.7)
