@@ -1934,6 +1934,57 @@ def test_a_gradient_line_between_equal_levels_does_not_cut_the_front_face():
     assert np.flatnonzero(d.front_face_mask[110])[-1] < np.floor(edge[70]) - 3
 
 
+JPEG_FAINT_SIDE_FACE = Path(__file__).resolve().parents[1] / "data" / "jpeg_s17_faint_side_face.png"
+"""A 100×240 crop of the reconstruct bench's JPEG s17 (quality 90, our renderer), cube 2: a magenta face
+27 px wide, turned 24°, with a side face 10 px wide on its right lit 4 % darker (sRGB 204, 84, 226 against
+200, 82, 222; a linear step of 0.04)."""
+
+JPEG_FAINT_SIDE_FACE_CORNERS = np.array([[800.204, 315.999], [826.881, 304.707], [826.999, 454.761],
+                                         [800.207, 462.729]]) - [768.0, 264.0]
+"""The front face's corners in the crop (`raytrace.truth.cube_truth`), [TL, TR, BR, BL]."""
+
+
+def test_a_faint_boundary_to_a_side_face_in_a_jpeg_image_splits_the_faces():
+    """JPEG left the step between the faces in the face's levels but not in its per-pixel gradients, which
+    ring in some columns of blocks and are flat in others: the front and side faces were found as one, and
+    the face was outlined 10 px wide of its right side. The levels either side of the boundary column step
+    by more than half the minimum face contrast: the faces are split there and the face outlined to 0.3 px,
+    as `depth.reconstruct` outlines a JPEG face."""
+    from depth.reconstruct import despeckled
+    image = _bench_crop(JPEG_FAINT_SIDE_FACE)
+    (d,) = detect_cubes(despeckled(image), np.ones(image.shape[:2], dtype=bool), compressed=True)
+    assert d.usable
+    right = JPEG_FAINT_SIDE_FACE_CORNERS[1, 0]
+    assert all(np.flatnonzero(d.front_face_mask[r])[-1] <= np.ceil(right) for r in range(70, 180))
+    assert d.side_face_masks and d.side_face_masks[0][120, int(right) + 5]
+    o = face_outline(image, d.front_face_mask, channels="luma", blur_domain="linear", thin_strips=False)
+    assert o, getattr(o, "reason", "")
+    assert np.abs(o.corners_px - JPEG_FAINT_SIDE_FACE_CORNERS).max() < 0.4
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_faint_face_boundary_among_columns_of_ringing_and_flat_blocks_is_found_where_its_levels_step(seed):
+    """`_vertical_edge_lines` on a blob in linear RGB with a step of 0.034 between columns 26 and 27 (half the
+    minimum face contrast is 0.015), a ripple of ±0.02 in blue over columns 11-14 (one level either side, as
+    JPEG rings), and pixel noise (σ 0.006) in every other band of 8 columns, the rest flat, as JPEG decodes a
+    uniform face. Told the image is compressed, the step is a boundary, at 26.5, and the ripple none; not
+    told, the columns' bimodal statistics hide the step."""
+    from depth.measure import _vertical_edge_lines
+    rng = np.random.default_rng(seed)
+    h, w = 120, 40
+    blob = np.zeros((h, w), dtype=bool)
+    blob[2:-2, 1:-1] = True
+    linear = np.empty((h, w, 3))
+    linear[:] = (0.60, 0.09, 0.76)
+    linear[:, 27:] -= (0.022, 0.003, 0.025)
+    linear[:, 11:15, 2] += (0.02, 0.02, -0.02, -0.02)
+    ringing = (np.arange(w) // 8) % 2 == 0
+    linear += np.where(ringing[None, :, None], rng.normal(0.0, 0.006, linear.shape), 0.0)
+    xs, _ = _vertical_edge_lines(linear, blob, 0.0, 0.03, compressed=True)
+    assert len(xs) == 1 and abs(xs[0] - 26.5) < 0.25, xs
+    assert len(_vertical_edge_lines(linear, blob, 0.0, 0.03)[0]) == 0
+
+
 @pytest.mark.parametrize("bump", [0.0, 0.01])
 def test_cuts_between_equal_levels_are_no_face_boundaries(bump):
     """`_stepped_span` over three parts of a blob: a face (level A), a part the same within half the minimum
