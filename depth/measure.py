@@ -1012,8 +1012,7 @@ def _stepped_span(linear: np.ndarray, blob: np.ndarray, x: np.ndarray, edges: np
         levels.append(np.median(px, axis=0) if len(px) >= 5 else None)
 
     def same(i, j):
-        return (levels[i] is not None and levels[j] is not None
-                and float(np.linalg.norm(levels[i] - levels[j])) < 0.5 * min_contrast)
+        return levels[i] is not None and levels[j] is not None and not _distinct_levels(levels[i], levels[j], min_contrast)
 
     lo, hi = k, k
     while lo > 0 and same(lo - 1, lo):
@@ -1021,6 +1020,12 @@ def _stepped_span(linear: np.ndarray, blob: np.ndarray, x: np.ndarray, edges: np
     while hi < len(levels) - 1 and same(hi, hi + 1):
         hi += 1
     return lo, hi
+
+
+def _distinct_levels(a: np.ndarray, b: np.ndarray, min_contrast: float) -> bool:
+    """Whether two levels (median linear RGB of two parts of a blob) differ as the two sides of a face
+    boundary do: by at least half `min_contrast` (a boundary of contrast c puts c/2 in each column beside it)."""
+    return float(np.linalg.norm(a - b)) >= 0.5 * min_contrast
 
 
 def _neck_reason(blob: np.ndarray):
@@ -1170,8 +1175,8 @@ def _vertical_edge_lines(linear: np.ndarray, blob: np.ndarray, lean: float, min_
 def _level_step(colours: np.ndarray, bins: np.ndarray, ok: np.ndarray, i: int, min_contrast: float,
                 reach: int = 4) -> bool:
     """Whether the `reach` sheared columns left of column i and those right of it, all with pixels enough
-    (`ok`), differ in level (median linear RGB) by at least half `min_contrast`, as `_stepped_span` asks of a
-    face boundary. colours : (N, 3) linear RGB of the pixels, bins : (N,) their sheared columns.
+    (`ok`), differ in level (median linear RGB) as the sides of a face boundary do (`_distinct_levels`, which
+    `_stepped_span` asks too). colours : (N, 3) linear RGB of the pixels, bins : (N,) their sheared columns.
 
     A column nearer than `reach` to either end of the inner columns is none: there JPEG's chroma, stored at
     half resolution and spread over about four pixels by the decoder (`JPEG_CHROMA_REACH_PX`), leaves a thin
@@ -1180,11 +1185,9 @@ def _level_step(colours: np.ndarray, bins: np.ndarray, ok: np.ndarray, i: int, m
     fits the blob's outline as the cube's contour)."""
     if i - reach < 0 or i + reach >= len(ok) or not ok[i - reach : i + reach + 1].all():
         return False
-    sides = []
-    for lo, hi in ((i - reach, i - 1), (i + 1, i + reach)):
-        near = (bins >= lo) & (bins <= hi)
-        sides.append(np.median(colours[near], axis=0))
-    return float(np.linalg.norm(sides[1] - sides[0])) >= 0.5 * min_contrast
+    left, right = (np.median(colours[(bins >= lo) & (bins <= hi)], axis=0)
+                   for lo, hi in ((i - reach, i - 1), (i + 1, i + reach)))
+    return _distinct_levels(left, right, min_contrast)
 
 
 def _kink(s: np.ndarray, c: np.ndarray, max_len: int, min_turn: float = 0.35):
