@@ -1018,6 +1018,19 @@ cube 5.53 cm across, upright, crossing the horizon, whose left side's edge point
 the horizon crosses it."""
 
 
+def _numpy_runs_avx512() -> bool:
+    """Whether numpy dispatches its AVX-512 (x86-64-v4) kernels here (not switched off by
+    NPY_DISABLE_CPU_FEATURES); True where it cannot tell."""
+    try:
+        from numpy._core._multiarray_umath import __cpu_features__ as features
+    except ImportError:
+        try:
+            from numpy.core._multiarray_umath import __cpu_features__ as features
+        except ImportError:
+            return True
+    return bool(features.get("X86_V4", features.get("AVX512_SKX", False)))
+
+
 def test_the_sigma_of_a_tilt_that_still_misfits_covers_the_upright_reading():
     """No upright face explains this cube's edges (0.65 px rms: its left side's jump) and a face tilted
     38° with its top face merged fits them at 0.28 px, past the upright limit too. The tilted reading is
@@ -1030,7 +1043,8 @@ def test_the_sigma_of_a_tilt_that_still_misfits_covers_the_upright_reading():
     EPYC here; every other cube of the reconstruct bench's clean, noise and JPEG images within 0.01 % of
     its AVX2 result) the last digits of the same solve keep it at 0.584 px, and the cube, grey, is then
     refused as an outline no square face explains (past `SHADOW_MISFIT_PX`). Either is a reading the
-    method allows; a cube reported must lie within 3 σ, and a refusal must be that one."""
+    method allows: where numpy runs its AVX-512 kernels that refusal is taken, elsewhere the one cube must
+    be found; a cube reported must lie within 3 σ."""
     import cv2
 
     from depth.reconstruct import SHADOW_MISFIT_REASON, reconstruct
@@ -1044,10 +1058,11 @@ def test_the_sigma_of_a_tilt_that_still_misfits_covers_the_upright_reading():
                            rotation, (0.0, 0.00103, 0.47365))
     mirror = CylinderMirror(0.1134, 0.52049, (0, 0, 0), (0, 1, 0))
     rec = reconstruct(image, camera, mirror, compressed=True, workers=1)
-    assert len(rec.cubes) + len(rec.refused) == 1, (rec.cubes, rec.refused)
-    if rec.refused:
+    if _numpy_runs_avx512() and rec.refused:
+        assert not rec.cubes and len(rec.refused) == 1, (rec.cubes, rec.refused)
         assert rec.refused[0].reason.startswith(SHADOW_MISFIT_REASON), rec.refused[0].reason
         return
+    assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
     (found,) = rec.cubes
     depth = float(mirror.distance_to_axis(np.array([[0.57058, -0.05473, 0.83237]]))[0])
     assert abs(found.depth - depth) < 3.0 * found.depth_std
