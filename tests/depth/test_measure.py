@@ -1551,6 +1551,37 @@ def test_a_faint_side_face_left_out_of_a_mitsuba_blob_is_read_beyond_its_side():
     assert abs(_mean_u_offset(back, *MITSUBA_GREY_BACK_EDGE)) < 0.3
 
 
+MITSUBA_GREY_JPEG = Path(__file__).resolve().parents[1] / "data" / "mitsuba_grey_8080_s5_1_jpeg.png"
+"""The same cube through OpenCV's JPEG coder at quality 90 (`python -m bench.holdout 8080 --jpeg`): a 56×128
+crop at (280, 448) of the decoded image, on its 8×8 block grid. Its despeckled blob (`depth.reconstruct`)
+leaves out a corner of the face: the left column for the bottom 10 rows and the bottom rows' left 7 px."""
+
+MITSUBA_GREY_JPEG_CORNERS = MITSUBA_GREY_CORNERS + [0.0, 4.0]
+"""Its front face's corners in that crop (BR, BL, TL, TR)."""
+
+
+def test_an_outline_still_moving_after_its_passes_is_measured_again_from_a_wider_first_pass():
+    """A face mask with a corner missing, 2–3 px short of the face's bottom-left: the first fit of the bottom
+    side leans, its left points are read at the ends of the ±1.5 px profiles, and the bottom side's fit bent
+    through them pass after pass (the bottom-left corner 3.4 px high after four passes, and still moving by
+    3.6 px: `exact` came out 42 % off, +4.0 σ). Measured again from the mask with a first pass over ±2.5 px,
+    the outline settles on the face's corners."""
+    from depth.reconstruct import despeckled
+
+    image = _bench_crop(MITSUBA_GREY_JPEG)
+    dets = [d for d in detect_cubes(despeckled(image), np.ones(image.shape[:2], dtype=bool), compressed=True)
+            if d.usable]
+    assert len(dets) == 1 and dets[0].achromatic
+    mask = dets[0].front_face_mask
+    bottom_left = np.round(MITSUBA_GREY_JPEG_CORNERS[1]).astype(int)  # (u, v)
+    assert not mask[bottom_left[1] - 4:bottom_left[1], bottom_left[0] + 1].any()  # the corner the mask lacks
+    o = face_outline(image, mask, thin_strips=False, channels="luma", blur_domain="linear", faint_sides=True)
+    assert o, getattr(o, "reason", "")
+    br, bl, tl, tr = MITSUBA_GREY_JPEG_CORNERS
+    assert np.abs(o.corners_px - [tl, tr, br, bl]).max() < 0.4
+    assert o.sides[0][:, 1].max() > bl[1] - 4.0  # the left side measured down to its corner
+
+
 BLUR_S07_4 = Path(__file__).resolve().parents[1] / "data" / "blur_s07_4.png"
 """A 40×100 crop of the reconstruct bench's blur s07/4 image: one green cube, its front face 11.6 px
 wide, with a darker side face on its right and a bottom face below."""
