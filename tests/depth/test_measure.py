@@ -1582,6 +1582,28 @@ def test_an_outline_still_moving_after_its_passes_is_measured_again_from_a_wider
     assert o.sides[0][:, 1].max() > bl[1] - 4.0  # the left side measured down to its corner
 
 
+def test_a_faint_side_face_left_out_of_a_jpeg_blob_is_read_beyond_its_side():
+    """The same grey cube in the JPEG image, outlined as `depth.reconstruct` outlines a JPEG face (on luma,
+    without the thin-strip pass): its right side face, 4.0 px wide by the cube's geometry, is read beyond its
+    right side and none beyond its left, and the measurement `exact` is given has that face's outer edge as
+    the cube's back vertical edge (read as no face there, `exact` came out 33 % off at +5.5 σ)."""
+    from depth.reconstruct import _measurement, despeckled
+
+    image = _bench_crop(MITSUBA_GREY_JPEG)
+    (d,) = [d for d in detect_cubes(despeckled(image), np.ones(image.shape[:2], dtype=bool), compressed=True)
+            if d.usable]
+    o = face_outline(image, d.front_face_mask, thin_strips=False, channels="luma", blur_domain="linear",
+                     faint_sides=True)
+    assert o, getattr(o, "reason", "")
+    assert o.faint_side_px[0] == 0.0 and o.faint_side_px[1] == pytest.approx(4.0, abs=0.5), o.faint_side_px
+    face_px = np.argwhere(d.front_face_mask)[:, ::-1].astype(np.float64)
+    meas = _measurement(image, d.mask, o, face_px, "luma", True)
+    assert meas.back_sides_px[0] is None and meas.side_gaps_px[1] == pytest.approx(4.0, abs=0.5)
+    back = meas.back_sides_px[1]
+    assert back is not None and len(back) >= 40
+    assert abs(_mean_u_offset(back, *(MITSUBA_GREY_BACK_EDGE + [0.0, 4.0]))) < 0.3
+
+
 BLUR_S07_4 = Path(__file__).resolve().parents[1] / "data" / "blur_s07_4.png"
 """A 40×100 crop of the reconstruct bench's blur s07/4 image: one green cube, its front face 11.6 px
 wide, with a darker side face on its right and a bottom face below."""
