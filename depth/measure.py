@@ -395,9 +395,9 @@ def _reaching_rim(mask: np.ndarray, search: np.ndarray, connectivity: int) -> np
 
 
 def _channel_gradient(rgb: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
-    """(dx, dy) int16 3 × 3 Sobel gradients of sRGB `rgb` (h, w, 3) rounded to 8 bits after a Gaussian blur
-    of `sigma` px, each pixel's from its channel of the largest |dx| + |dy| (the first of equal ones, as
-    argmax would pick)."""
+    """(dx, dy) int16 3 × 3 Sobel gradients of sRGB `rgb` (h, w, 3) rounded to 8 bits (value · 255 in float32,
+    as OpenCV's `convertScaleAbs` computes it) after a Gaussian blur of `sigma` px, each pixel's from its
+    channel of the largest |dx| + |dy| (the first of equal ones, as argmax would pick)."""
     u8 = cv2.GaussianBlur(cv2.convertScaleAbs(rgb, alpha=255.0), (0, 0), sigma)  # rounds and saturates
     # cv2.spatialGradient: the same 3 × 3 Sobel and border as cv2.Sobel, dx and dy in one pass (half the time)
     dx, dy = zip(*(cv2.spatialGradient(c) for c in cv2.split(u8)))

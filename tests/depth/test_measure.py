@@ -534,7 +534,9 @@ def test_readings_in_turn_that_share_their_gradients_find_what_each_finds_alone(
 def test_the_edge_gradient_is_the_sobel_of_the_channel_with_the_largest_one(height, width, sigma, seed):
     """`_channel_gradient` against a reference written apart: scipy's Sobel (its "mirror" border is
     OpenCV's default, reflect-101) of each blurred 8-bit channel, the channel of the largest |dx| + |dy|
-    taken per pixel (the first of equal ones)."""
+    taken per pixel (the first of equal ones). The 8 bits are rounded from float32(value)·255 in float32,
+    half to even, as OpenCV's `convertScaleAbs` rounds a float64 image: rounded in float64, a value within
+    float32's precision of a half (0.5745098102318715 · 255 = 146.5000016) comes out a level apart."""
     import cv2
     import scipy.ndimage
 
@@ -542,7 +544,8 @@ def test_the_edge_gradient_is_the_sobel_of_the_channel_with_the_largest_one(heig
 
     rgb = np.random.default_rng(seed).random((height, width, 3))
     rgb[:, : width // 2] *= 0.2  # a step, beside the noise
-    u8 = cv2.GaussianBlur(np.round(rgb * 255.0).astype(np.uint8), (0, 0), sigma).astype(np.int64)
+    u8 = np.round(rgb.astype(np.float32) * np.float32(255.0)).astype(np.uint8)
+    u8 = cv2.GaussianBlur(u8, (0, 0), sigma).astype(np.int64)
     gx = np.stack([scipy.ndimage.sobel(u8[..., k], axis=1, mode="mirror") for k in range(3)], axis=-1)
     gy = np.stack([scipy.ndimage.sobel(u8[..., k], axis=0, mode="mirror") for k in range(3)], axis=-1)
     pick = np.argmax(np.abs(gx) + np.abs(gy), axis=-1)[..., None]
