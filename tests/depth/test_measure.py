@@ -1563,19 +1563,25 @@ MITSUBA_GREY_JPEG_CORNERS = MITSUBA_GREY_CORNERS + [0.0, 4.0]
 """Its front face's corners in that crop (BR, BL, TL, TR)."""
 
 
-def test_an_outline_still_moving_after_its_passes_is_measured_again_from_a_wider_first_pass():
-    """A face mask with a corner missing, 2–3 px short of the face's bottom-left: the first fit of the bottom
-    side leans, its left points are read at the ends of the ±1.5 px profiles, and the bottom side's fit bent
-    through them pass after pass (the bottom-left corner 3.4 px high after four passes, and still moving by
-    3.6 px: `exact` came out 42 % off, +4.0 σ). Measured again from the mask with a first pass over ±2.5 px,
-    the outline settles on the face's corners."""
+def _mitsuba_grey_jpeg_detection():
+    """The JPEG crop and its one usable detection, found as `depth.reconstruct` finds a JPEG image's cubes."""
     from depth.reconstruct import despeckled
 
     image = _bench_crop(MITSUBA_GREY_JPEG)
     dets = [d for d in detect_cubes(despeckled(image), np.ones(image.shape[:2], dtype=bool), compressed=True)
             if d.usable]
     assert len(dets) == 1 and dets[0].achromatic
-    mask = dets[0].front_face_mask
+    return image, dets[0]
+
+
+def test_an_outline_still_moving_after_its_passes_is_measured_again_from_a_wider_first_pass():
+    """A face mask with a corner missing, 2–3 px short of the face's bottom-left: the first fit of the bottom
+    side leans, its left points are read at the ends of the ±1.5 px profiles, and the bottom side's fit bent
+    through them pass after pass (the bottom-left corner 3.4 px high after four passes, and still moving by
+    3.6 px: `exact` came out 42 % off, +4.0 σ). Measured again from the mask with a first pass over ±2.5 px,
+    the outline settles on the face's corners."""
+    image, det = _mitsuba_grey_jpeg_detection()
+    mask = det.front_face_mask
     bottom_left = np.round(MITSUBA_GREY_JPEG_CORNERS[1]).astype(int)  # (u, v)
     assert not mask[bottom_left[1] - 4:bottom_left[1], bottom_left[0] + 1].any()  # the corner the mask lacks
     o = face_outline(image, mask, thin_strips=False, channels="luma", blur_domain="linear", faint_sides=True)
@@ -1590,11 +1596,9 @@ def test_a_faint_side_face_left_out_of_a_jpeg_blob_is_read_beyond_its_side():
     without the thin-strip pass): its right side face, 4.0 px wide by the cube's geometry, is read beyond its
     right side and none beyond its left, and the measurement `exact` is given has that face's outer edge as
     the cube's back vertical edge (read as no face there, `exact` came out 33 % off at +5.5 σ)."""
-    from depth.reconstruct import _measurement, despeckled
+    from depth.reconstruct import _measurement
 
-    image = _bench_crop(MITSUBA_GREY_JPEG)
-    (d,) = [d for d in detect_cubes(despeckled(image), np.ones(image.shape[:2], dtype=bool), compressed=True)
-            if d.usable]
+    image, d = _mitsuba_grey_jpeg_detection()
     o = face_outline(image, d.front_face_mask, thin_strips=False, channels="luma", blur_domain="linear",
                      faint_sides=True)
     assert o, getattr(o, "reason", "")
