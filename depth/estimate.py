@@ -108,6 +108,12 @@ MERGED_TOP_PX = 1.0
 """A top or bottom face that the fitted pose shows taller than this (px) where the image shows no
 distinct face beside that side is taken as merged with the front face, and `exact` fits again."""
 
+UNRESOLVED_BAND_PX = 3.0
+"""A top or bottom face that the fitted pose shows at most this tall (px) beside a side of the front face,
+neither merged with the outline nor read as a thin strip beside it, lies within the edge profile's reach
+(±1.5 px, `depth.measure.face_outline`): the side's reading can land anywhere across it. `exact`'s σ takes
+that side's common offset as uniform over the band (σ = height/√3 about the front edge, see `covariance`)."""
+
 SILHOUETTE_MARGIN_PX = 5
 """With the blob known (`FaceMeasurement.blob_mask`), the merged and the unmerged reading of a top or
 bottom face are told apart by how many pixels each pose's silhouette disagrees with the blob more than
@@ -889,7 +895,31 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             return ((f[1:] - f[0]) / h[:, None]).T
         return least_squares(lambda y: values(y[None])[0], y0, jac=jac, **kw)
 
-    def covariance(j, r, n_params):
+    def unresolved_bands(x):
+        """Per side (6,), σ (px) of a common offset from a top or bottom face that pose x shows at most
+        UNRESOLVED_BAND_PX tall beside that side, neither merged into the outline nor read as a thin strip
+        (`FaceMeasurement.strip_px`); 0 elsewhere. Such a band lies within the edge profile's reach and
+        the side's reading lands anywhere across it. On the holdouts' Mitsuba renders (PNG and JPEG, 34
+        top corners beside bands 0.5–3 px tall; bench/README, fifty-fourth session) the top side
+        was read a fraction −0.31 to 1.44 of the way across, median 0.63, rms 0.73 (uniform over the band:
+        0.58): a grey cube before a white sky, its top face 2.0 px tall and lit between the two, was read
+        1.2–1.4 px high in JPEG."""
+        out = np.zeros(6)
+        rot, _, s = unpack(x)
+        axes = _square_axes(rot, base)
+        merged_sides = {sg for faces, axis, sg in merged if axis == 0}
+        for k in (2, 3):
+            m = sid == k
+            if sign[k] in merged_sides or meas.strip_px[k] > 0 or not m.any():
+                continue
+            ext = _face_extent_px(d[m], sign[k], s, axes[0], axes[2], weight[m])
+            ext = ext[np.isfinite(ext)]
+            height = float(np.median(ext)) if len(ext) else 0.0
+            if 0.0 < height <= UNRESOLVED_BAND_PX:
+                out[k] = height / np.sqrt(3.0)
+        return out
+
+    def covariance(j, r, n_params, x):
         # Sandwich covariance with Σ = σ²·I + b²·(ones within each side): a common offset of a whole
         # side is not averaged away by its many points. b is the image's edge bias, or the rms misfit
         # the fit leaves where that is larger: edges no square explains to within the bias are off
@@ -908,6 +938,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         # likelihood scale (below) stays the pooled one (`pooled`).
         pooled = sigma2 * (je.T @ je) + jp.T @ jp
         meat = jp.T @ jp
+        band = unresolved_bands(x)
         for side in range(6):
             on_side = sid == side
             j_side = je[on_side]
@@ -916,7 +947,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             if on_side.any():
                 own = float(np.mean(r[:n][on_side] ** 2))  # this side's mean squared misfit (pixels²)
                 meat += max(sigma2, own * n / max(n - n_params, 1)) * (j_side.T @ j_side)
-                meat += max(bias2, own) * np.outer(g, g)
+                meat += (max(bias2, own) + band[side] ** 2) * np.outer(g, g)
         # how much the side offsets widen the turn's variance over the point scatter's (the first
         # parameter is the turn): the scale at which costs along the turn profile are read
         naive = sigma2 * jtj_inv[0, 0]
@@ -1072,7 +1103,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             stage1 = profiled(x_best) or stage1
             x_best, sol1 = stage1
         cov = np.zeros((7, 7))
-        cov[np.ix_(upright, upright)], scales = covariance(sol1.jac, sol1.fun, 5)
+        cov[np.ix_(upright, upright)], scales = covariance(sol1.jac, sol1.fun, 5, x_best)
         log = list(profile_log) if len(merged) > 1 else []
         # Stage 2, any orientation, only when the upright face does not explain the edges (rms above
         # UPRIGHT_MISFIT_PX, many times the sub-pixel edge scatter), kept only when it halves the misfit:
@@ -1085,7 +1116,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             starts = [np.r_[origin[:2], roll, origin[3:]] for origin in (x_best, np.zeros(7)) for roll in rolls]
             stage2 = refined(True, starts)
             if stage2 is not None and _rms(stage2[1].fun) < 0.5 * rms1:
-                cov, scales = covariance(stage2[1].jac, stage2[1].fun, 7)
+                cov, scales = covariance(stage2[1].jac, stage2[1].fun, 7, stage2[0])
                 # A tilt that still misfits past the upright limit explains the edges no better than an
                 # upright face might with a stretch of them off (a side's edge points jumping where the
                 # horizon crosses it, which a tilted face with merged faces can follow with a kink): the

@@ -196,6 +196,66 @@ def test_the_sigma_covers_a_short_side_whose_points_scatter_far_more_than_the_ot
     assert np.mean(z <= 1) <= 0.9  # and σ is not blown up past the errors
 
 
+def _top_band_px(rig, cube):
+    """Height (px) of the top face's image above the front face's top corners, from the exact reflection
+    of its far edge (> 0: the top face is seen)."""
+    from raytrace.truth import reflection_pixels
+    _, corners, centre = cube.front_face(rig.mirror)
+    back = corners - cube.size * (centre - cube.center) / np.linalg.norm(centre - cube.center)
+    front_px = reflection_pixels(rig.camera, rig.mirror, corners)[0]
+    back_px = reflection_pixels(rig.camera, rig.mirror, back)[0]
+    top = np.argsort(front_px[:, 1])[:2]
+    return float(np.mean(front_px[top, 1] - back_px[top, 1]))
+
+
+@pytest.mark.parametrize("distance, azimuth, height", [(0.9, 30.0, -0.06), (0.6, -20.0, -0.05), (0.5, 0.0, -0.04)])
+def test_the_sigma_covers_a_top_side_read_anywhere_across_a_thin_top_face(rig, monkeypatch, distance, azimuth, height):
+    """A cube below the camera shows its top face as a band 1.8–2.3 px tall above the front face, within the
+    edge profile's reach: the top side's reading can land anywhere across it. Its common offset then has σ
+    = band/√3 (uniform over the band), and the depth σ² grows by (∂depth/∂offset · band/√3)², the slope
+    measured here by fitting again with the top side moved ±0.2 px and the band from the exact reflection
+    of the top face's far edge (neither is what `exact` computes)."""
+    import depth.estimate as E
+    cube = rig.cube(distance, azimuth, height=height)
+    band = _top_band_px(rig, cube)
+    assert 1.5 < band < E.UNRESOLVED_BAND_PX
+    meas = dataclasses.replace(rig.measure(cube, gaps=True), edge_bias_px=0.15, edge_noise_px=0.02)
+
+    def depth_and_sigma(m, unresolved=E.UNRESOLVED_BAND_PX):
+        monkeypatch.setattr(E, "UNRESOLVED_BAND_PX", unresolved)
+        est = estimate_face(rig.rays, m, method="exact", up=rig.mirror.axis)
+        assert est, est.reason
+        return float(rig.mirror.distance_to_axis(est.center[None])[0]), est.std["z"]
+
+    def top_moved(dv):
+        sides = list(meas.sides_px)
+        sides[2] = sides[2] + [0.0, dv]
+        return dataclasses.replace(meas, sides_px=tuple(sides))
+
+    _, sigma = depth_and_sigma(meas)
+    _, sigma_without = depth_and_sigma(meas, 0.0)
+    slope = (depth_and_sigma(top_moved(-0.2), 0.0)[0] - depth_and_sigma(top_moved(0.2), 0.0)[0]) / 0.4
+    assert sigma == pytest.approx(np.hypot(sigma_without, slope * band / np.sqrt(3.0)), rel=0.1)
+    assert sigma > 1.2 * sigma_without
+    # read as a thin strip beside the side, the band is resolved: no term
+    strip = dataclasses.replace(meas, strip_px=(0.0, 0.0, band, 0.0))
+    assert depth_and_sigma(strip)[1] == pytest.approx(sigma_without, rel=1e-6)
+
+
+def test_a_top_face_taller_than_the_edge_profile_reaches_adds_nothing_to_the_sigma(rig, monkeypatch):
+    """A top face 3.5 px tall lies beyond the edge profile's reach: its far edge is an edge of its own, not
+    a band the front face's top side is read across."""
+    import depth.estimate as E
+    cube = rig.cube(0.9, 30.0, height=-0.1)
+    assert _top_band_px(rig, cube) > E.UNRESOLVED_BAND_PX
+    meas = dataclasses.replace(rig.measure(cube, gaps=True), edge_bias_px=0.15, edge_noise_px=0.02)
+    sigmas = []
+    for unresolved in (E.UNRESOLVED_BAND_PX, 0.0):
+        monkeypatch.setattr(E, "UNRESOLVED_BAND_PX", unresolved)
+        sigmas.append(estimate_face(rig.rays, meas, method="exact", up=rig.mirror.axis).std["z"])
+    assert sigmas[0] == pytest.approx(sigmas[1], rel=1e-6)
+
+
 def test_bad_arguments(rig):
     meas = rig.measure(rig.cube(0.5, 5.0))
     with pytest.raises(DepthError, match="method: expected one of ddar, dds, exact"):
