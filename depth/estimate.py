@@ -895,6 +895,14 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             return ((f[1:] - f[0]) / h[:, None]).T
         return least_squares(lambda y: values(y[None])[0], y0, jac=jac, **kw)
 
+    def seen_height_px(k, s, axes):
+        """Median image height (px) over side k's points of the top or bottom face beyond that side, at a
+        pose of edge length s and frame `axes`: ≤ 0 where that face is hidden, 0 where no point gives one."""
+        m = sid == k
+        ext = _face_extent_px(d[m], sign[k], s, axes[0], axes[2], weight[m])
+        ext = ext[np.isfinite(ext)]
+        return float(np.median(ext)) if len(ext) else 0.0
+
     def unresolved_bands(x):
         """Per side (6,), σ (px) of a common offset from a top or bottom face that pose x shows at most
         UNRESOLVED_BAND_PX tall beside that side, neither merged into the outline nor read as a thin strip
@@ -909,12 +917,9 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         axes = _square_axes(rot, base)
         merged_sides = {sg for faces, axis, sg in merged if axis == 0}
         for k in (2, 3):
-            m = sid == k
-            if sign[k] in merged_sides or meas.strip_px[k] > 0 or not m.any():
+            if sign[k] in merged_sides or meas.strip_px[k] > 0:
                 continue
-            ext = _face_extent_px(d[m], sign[k], s, axes[0], axes[2], weight[m])
-            ext = ext[np.isfinite(ext)]
-            height = float(np.median(ext)) if len(ext) else 0.0
+            height = seen_height_px(k, s, axes)
             if 0.0 < height <= UNRESOLVED_BAND_PX:
                 out[k] = height / np.sqrt(3.0)
         return out
@@ -1137,12 +1142,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         # with no sun lights every face alike). Fit again with it in the outline.
         rot, c, s = unpack(result[0])
         axes = _square_axes(rot, base)
-        heights = []
-        for k in tb_candidates:
-            m = sid == k
-            ext = np.maximum(_face_extent_px(d[m], sign[k], s, axes[0], axes[2], weight[m]), 0.0)
-            heights.append(float(np.median(ext[np.isfinite(ext)])) if np.isfinite(ext).any() else 0.0)
-        tops = [k for k, hk in zip(tb_candidates, heights) if hk > MERGED_TOP_PX]
+        tops = [k for k in tb_candidates if seen_height_px(k, s, axes) > MERGED_TOP_PX]
         if tops:
             # The merged reading stands only when it fits the edges no worse. A pose that is off
             # elsewhere can also show that face (a little over a pixel), and the merged outline then
