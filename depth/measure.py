@@ -441,6 +441,60 @@ def _bridged_canny(dx: np.ndarray, dy: np.ndarray, weak: float, strong: float) -
     return out
 
 
+POCKET_NECK_PX = 3
+"""Side of the square that `_pockets_cut` erodes the background with: a part of it reached only through a
+neck under this many pixels wide is a pocket."""
+
+POCKET_REACH_PX = 6
+"""Steps (3 × 3, within the background) from a pocket to the background beyond its neck whose colour
+`_pockets_cut` compares with the pocket's."""
+
+
+def _pockets_cut(rgb: np.ndarray, near: np.ndarray, search: np.ndarray, step: float) -> np.ndarray:
+    """`near` without its pockets whose colour is not the background's: the parts of it that reach the
+    mirror's edge only through a neck under `POCKET_NECK_PX` wide, whose median colour leaves that of the
+    background just beyond the neck by more than `step` in some channel. Where an edge of an object
+    breaks for more pixels than the closing bridges (a side face's outer edge where the horizon crosses
+    it, its step to the floor spread over 4 px by JPEG), the background floods the object through the
+    gap; the flood keeps the object's own colour, which no background has there."""
+    square = np.ones((POCKET_NECK_PX, POCKET_NECK_PX), np.uint8)
+    core = cv2.erode((near | ~search).view(np.uint8), square).view(bool) & near
+    n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(core.view(np.uint8), connectivity=4)
+    # the components reaching within 2 px of the mirror region's edge (as `_reaching_rim`'s)
+    rim = search & ~cv2.erode(search.astype(np.uint8), np.ones((5, 5), np.uint8)).view(bool)
+    is_rimmed = np.zeros(n_lab, dtype=bool)
+    is_rimmed[np.unique(labels[rim & core])] = True
+    is_rimmed[0] = False
+    # a pocket whose core is under 3 × 3 px holds no 5 × 5 block, the least region taken for an object:
+    # left in the background
+    pocket = ~is_rimmed & (stats[:, cv2.CC_STAT_AREA] >= 9)
+    pocket[0] = False
+    if not pocket.any():
+        return near
+    out = near.copy()
+    reach = POCKET_NECK_PX + POCKET_REACH_PX + 2
+    grow = np.ones((3, 3), np.uint8)
+    for lab in np.flatnonzero(pocket):
+        x, y, w, h = stats[lab, :4]
+        sl = (slice(max(y - reach, 0), y + h + reach), slice(max(x - reach, 0), x + w + reach))
+        win_near, win_core = near[sl], core[sl]
+        # each background pixel of the window belongs to the core component nearest to it
+        _, nearest = cv2.distanceTransformWithLabels((~win_core).view(np.uint8), cv2.DIST_L2, 5,
+                                                     labelType=cv2.DIST_LABEL_PIXEL)
+        owner = labels[sl].ravel()[np.flatnonzero(win_core)][nearest - 1]
+        own = win_near & (owner == lab)
+        grown = own.view(np.uint8)
+        for _ in range(POCKET_NECK_PX + POCKET_REACH_PX):
+            grown = cv2.dilate(grown, grow) & win_near.view(np.uint8)
+        beyond = grown.view(bool) & is_rimmed[owner] & win_near
+        if not beyond.any():
+            continue
+        win = rgb[sl]
+        if np.max(np.abs(np.median(win[own], axis=0) - np.median(win[beyond], axis=0))) > step:
+            out[sl] &= ~own
+    return out
+
+
 def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_share: float,
               contrast: tuple[float, float] = ENCLOSING_EDGE_CONTRAST, close_px: int = 3, sigma: float = 1.0,
               gradient: tuple[np.ndarray, np.ndarray] | None = None):
@@ -462,6 +516,7 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
     near = _reaching_rim(free, search, 4)
     if np.mean(near[rest]) < background_share:
         return None
+    near = _pockets_cut(rgb, near, search, weak / (3.2 * 255.0))
     # The 3 px band of each edge beside an enclosed region: a pixel there is the region's where its
     # colour leaves the nearest background pixel's (3 × 3 mean) by more than the background's noise
     # band (as `_uniform_background`'s), so that a region ends where its colour does, not 1–2 px
