@@ -384,10 +384,15 @@ def _holes_filled(mask: np.ndarray) -> np.ndarray:
     return ~open_[labels]
 
 
+def _rim(search: np.ndarray) -> np.ndarray:
+    """The pixels of `search` within 2 px of its edge."""
+    return search & ~cv2.erode(search.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+
+
 def _reaching_rim(mask: np.ndarray, search: np.ndarray, connectivity: int) -> np.ndarray:
     """The pixels of the connected regions of `mask` that reach within 2 px of the edge of `search`."""
     n_lab, labels = cv2.connectedComponents(mask.astype(np.uint8), connectivity=connectivity)
-    rim = search & ~cv2.erode(search.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    rim = _rim(search)
     reach = np.zeros(n_lab, dtype=bool)
     reach[np.unique(labels[rim & mask])] = True
     reach[0] = False
@@ -446,8 +451,8 @@ POCKET_NECK_PX = 3
 neck under this many pixels wide is a pocket."""
 
 POCKET_REACH_PX = 6
-"""Steps (3 × 3, within the background) from a pocket to the background beyond its neck whose colour
-`_pockets_cut` compares with the pocket's."""
+"""Steps (3 × 3, within the background) beyond a pocket's neck, which `_pockets_cut` takes `POCKET_NECK_PX`
+steps to cross, to the background whose colour it compares with the pocket's."""
 
 
 def _pockets_cut(rgb: np.ndarray, near: np.ndarray, search: np.ndarray, step: float) -> np.ndarray:
@@ -460,10 +465,8 @@ def _pockets_cut(rgb: np.ndarray, near: np.ndarray, search: np.ndarray, step: fl
     square = np.ones((POCKET_NECK_PX, POCKET_NECK_PX), np.uint8)
     core = cv2.erode((near | ~search).view(np.uint8), square).view(bool) & near
     n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(core.view(np.uint8), connectivity=4)
-    # the components reaching within 2 px of the mirror region's edge (as `_reaching_rim`'s)
-    rim = search & ~cv2.erode(search.astype(np.uint8), np.ones((5, 5), np.uint8)).view(bool)
-    is_rimmed = np.zeros(n_lab, dtype=bool)
-    is_rimmed[np.unique(labels[rim & core])] = True
+    is_rimmed = np.zeros(n_lab, dtype=bool)  # the components reaching the rim, as `_reaching_rim`'s
+    is_rimmed[np.unique(labels[_rim(search) & core])] = True
     is_rimmed[0] = False
     # a pocket whose core is under 3 × 3 px holds no 5 × 5 block, the least region taken for an object:
     # left in the background
@@ -516,7 +519,7 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
     near = _reaching_rim(free, search, 4)
     if np.mean(near[rest]) < background_share:
         return None
-    near = _pockets_cut(rgb, near, search, weak / (3.2 * 255.0))
+    near = _pockets_cut(rgb, near, search, contrast[0])
     # The 3 px band of each edge beside an enclosed region: a pixel there is the region's where its
     # colour leaves the nearest background pixel's (3 × 3 mean) by more than the background's noise
     # band (as `_uniform_background`'s), so that a region ends where its colour does, not 1–2 px
