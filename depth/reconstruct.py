@@ -356,8 +356,8 @@ def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, comp
                  scipy_imported) -> Reconstruction:
     """`reconstruct` of its checked image `img` (and `det_img`, the one cubes are detected on)."""
     from raytrace.truth import mirror_mask, mirror_rays
-    from depth.measure import (FAINT_EDGE_CONTRAST, FAINT_EDGE_READINGS, blur_domain_evidence, detect_cubes,
-                               extended_to_blob, face_outline, faint_regrowth, pooled_blur_domain,
+    from depth.measure import (FAINT_EDGE_CONTRAST, FAINT_EDGE_READINGS, blur_domain_evidence, convex_filled,
+                               detect_cubes, extended_to_blob, face_outline, faint_regrowth, pooled_blur_domain,
                                same_material_faces)
 
     mask = mirror_mask(camera, mirror)
@@ -398,18 +398,30 @@ def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, comp
     def regrown(det, fainter=True):
         """An achromatic detection grown across faint edges (`faint_regrowth`), usable and touching no
         other blob: each such reading, one per (blur, steps) of `FAINT_EDGE_READINGS` in turn (without
-        `fainter`, only those at `FAINT_EDGE_CONTRAST`)."""
+        `fainter`, only those at `FAINT_EDGE_CONTRAST`); then the convex hull (`convex_filled`) of the
+        detection itself and of each of those readings, where it fills notches the background bit out of
+        the blob."""
         gradients = {}  # each window's gradient per blur, shared by the readings at that blur
+
+        def alone(grown):  # usable and touching no other blob
+            if grown is None or grown.reason:
+                return False
+            ring = cv2.dilate(grown.mask.view(np.uint8), np.ones((5, 5), np.uint8)).view(bool)
+            return not (ring & blobs & ~det.mask).any()
+
+        readings = [det]
         for smoothing, contrast in FAINT_EDGE_READINGS:
             if not fainter and contrast != FAINT_EDGE_CONTRAST:
                 continue
             grown = faint_regrowth(det_img, mask, det, compressed=compressed, smoothing_px=smoothing,
                                    contrast=contrast, gradients=gradients)
-            if grown is None or grown.reason:
-                continue
-            ring = cv2.dilate(grown.mask.view(np.uint8), np.ones((5, 5), np.uint8)).view(bool)
-            if not (ring & blobs & ~det.mask).any():
+            if alone(grown):
+                readings.append(grown)
                 yield grown
+        for reading in readings:
+            hull = convex_filled(det_img, mask, reading, compressed=compressed)
+            if alone(hull):
+                yield hull
 
     def outlined(i):
         """Detection i's front face outlined: (face pixels (N, 2) (u, v), outline, channels, its

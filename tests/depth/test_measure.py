@@ -606,6 +606,41 @@ def test_a_tall_white_face_found_as_its_sliver_of_a_top_face_alone_is_regrown_wh
     assert (grown.mask & found.mask).sum() > 0.9 * found.mask.sum()
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_grey_blob_notched_by_the_background_is_read_whole_as_its_convex_hull(seed):
+    """A white face (44 × 200 px) with a dark side face 6 px wide on its right, found whole, then with two
+    notches 13 px deep and 10 px tall bitten out of its left side (where a faint edge breaks, the
+    background reaches into the face: holdout 9090 s3/1 in JPEG). The notched blob's outline reads a
+    corner over a pixel from where the whole blob's outline reads it (1.3–17 px); `convex_filled` gives
+    the notched blob's convex hull, faces split again, whose front face is within IoU 0.95 of the truth
+    and whose outline has every corner within 0.5 px of the whole blob's and no farther from the truth
+    than the whole blob's worst corner. The whole blob, whose hull adds only its top and bottom sides'
+    bend, is left as it is (None)."""
+    from depth.measure import convex_filled
+
+    cube = FakeCube((100.3, 40.6), (144.8, 38.4), (145.5, 240.2), (101.1, 242.1), top_sag=1.5, bottom_sag=2.0,
+                    albedo=(1.0, 1.0, 1.0), front_shade=0.44, side="right", side_width=6.0, side_shade=0.25)
+    image, mirror = make_image((280, 240), [cube], background="ramp", noise=2 / 255, seed=seed)
+    face = pixel_truth(image.shape[:2], cube, "face")
+    (found,) = detect_cubes(image, mirror)
+    assert found.usable and found.achromatic and (found.mask & face).sum() > 0.95 * face.sum()
+    assert convex_filled(image, mirror, found) is None
+    notched = found.mask.copy()
+    for top in (70, 170):
+        notched[top:top + 10, 95:114] = False
+    bitten = dataclasses.replace(found, mask=notched, front_face_mask=found.front_face_mask & notched)
+    reference = face_outline(image, found.front_face_mask).corners_px
+    assert np.abs(face_outline(image, bitten.front_face_mask).corners_px - reference).max() > 1.0  # the case
+    whole = convex_filled(image, mirror, bitten)
+    assert whole is not None and whole.usable and whole.achromatic
+    iou = (whole.front_face_mask & face).sum() / (whole.front_face_mask | face).sum()
+    assert iou > 0.95
+    corners = face_outline(image, whole.front_face_mask).corners_px
+    np.testing.assert_allclose(corners, reference, atol=0.5)
+    truth = cube.corners()
+    assert np.abs(corners - truth).max() <= np.abs(reference - truth).max() + 0.05
+
+
 def test_regrowth_leaves_a_whole_cube_and_a_face_with_no_edge_alone():
     """Where the blob is already the whole cube (a red cube), or the front face has the sky's own
     colour (no edge at all to grow across), `faint_regrowth` gives None: nothing grows by 20 %."""
