@@ -509,9 +509,9 @@ def convex_filled(image: np.ndarray, mirror_mask: np.ndarray, detection: CubeDet
 
     A cube's silhouette is convex but for the bend of its top and bottom sides (1–2 px). Where a faint
     edge breaks, the background reaches into a grey face through the gap and bites notches out of it deeper
-    than `faint_regrowth`'s closing fills: holdout 9090 s3/1 in JPEG, grown from its side face, had two
-    10 px deep on its left side, and its outline read the top and bottom sides slanting by 30 px (refused,
-    2.9 px of edge misfit); its hull reads the face 0.16 % off. `depth.reconstruct` reads a refused grey
+    than `faint_regrowth`'s closing fills: holdout 9090 s3/1 in JPEG, grown from its side face, had two up
+    to 22 px deep on its left side, and its outline read the top and bottom sides slanting by 30 px (refused,
+    4.2 px of edge misfit); its hull reads the face 0.14 % off. `depth.reconstruct` reads a refused grey
     blob's hulls only after every `faint_regrowth` reading of it has failed."""
     image = _check_image(image)
     x0, y0, x1, y1 = detection.bbox
