@@ -2158,6 +2158,57 @@ def test_a_gradient_line_between_equal_levels_does_not_cut_the_front_face():
     assert np.flatnonzero(d.front_face_mask[110])[-1] < np.floor(edge[70]) - 3
 
 
+MITSUBA_CYAN_NOISE_LINE = Path(__file__).resolve().parents[1] / "data" / "mitsuba_cyan_6060_s2_3.png"
+"""A 64×152 crop (x 784–848, y 56–208) of holdout 6060 scene 2 (Mitsuba 3, 16 spp, PNG), cube 3: a cyan face
+22 px wide facing the mirror axis, a side face about 1 px wide on its left, its bottom face below it. One column
+of the face, 4.7 px inside its left side, has its 70th percentile of horizontal gradient 0.0076 over the
+columns' level, past the line detector's threshold, by the path tracer's noise alone: the three columns either
+side of it have one level."""
+
+MITSUBA_CYAN_NOISE_LINE_CORNERS = np.array([[22.552, 14.93], [44.605, 17.835], [44.839, 119.232], [22.76, 116.962]])
+"""The front face's corners in the crop (`raytrace.truth.cube_truth`), [TL, TR, BR, BL]."""
+
+
+def test_a_noise_line_with_one_level_either_side_does_not_cut_a_path_traced_face():
+    """The face was cut at that column: its left 5 px were taken for a side face, the front face outlined
+    4.7 px narrow, and the cube came out 21.7 % off at +5.5 σ. A line with one level either side is no
+    boundary between faces: the front face reaches its own left side and is outlined there."""
+    image = _bench_crop(MITSUBA_CYAN_NOISE_LINE)
+    (d,) = detect_cubes(image, np.ones(image.shape[:2], dtype=bool))
+    assert d.usable
+    truth_left = MITSUBA_CYAN_NOISE_LINE_CORNERS[0, 0]
+    for row in (40, 80, 110):
+        assert np.flatnonzero(d.front_face_mask[row])[0] <= np.ceil(truth_left)
+    o = face_outline(image, d.front_face_mask)
+    assert o, getattr(o, "reason", "")
+    assert np.abs(o.corners_px - MITSUBA_CYAN_NOISE_LINE_CORNERS).max() < 0.5
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_column_of_flicker_inside_a_face_is_no_face_boundary_but_a_level_step_there_is(seed):
+    """A face column whose pixels alternate 10 % brighter and darker (linear), as a column of render noise
+    can: its neighbours' horizontal gradient stands out of the face's, but the levels either side are one,
+    and the front face is found whole. The same column as a step, the face 10 % brighter left of it (a
+    side face lit a little otherwise), still splits the blob there."""
+    from depth.measure import _linear_to_srgb
+    c = FakeCube((60.3, 30.4), (84.6, 30.9), (85.2, 130.3), (60.9, 129.8), top_sag=0.6, side=None,
+                 albedo=COLOURS["green"])
+    image, mirror = make_image((160, 150), [c], background="grey", noise=2 / 255, seed=seed)
+    face = pixel_truth(image.shape[:2], c, "face")
+    col = 68
+    rows = np.flatnonzero(face[:, col])
+    flicker = srgb_to_linear(image)
+    flicker[rows, col] *= 1.0 + np.where(rows % 2 == 0, 0.1, -0.1)[:, None]
+    (d,) = match(detect_cubes(_linear_to_srgb(flicker), mirror), [c])
+    for row in (50, 80, 110):
+        assert np.flatnonzero(d.front_face_mask[row])[0] <= np.flatnonzero(face[row])[0] + 1
+    step = srgb_to_linear(image)
+    step[face & (np.arange(image.shape[1]) < col)] *= 1.1
+    (d,) = match(detect_cubes(_linear_to_srgb(step), mirror), [c])
+    for row in (50, 80, 110):
+        assert col - 1 <= np.flatnonzero(d.front_face_mask[row])[0] <= col + 2
+
+
 JPEG_FAINT_SIDE_FACE = Path(__file__).resolve().parents[1] / "data" / "jpeg_s17_faint_side_face.png"
 """A 100×240 crop of the reconstruct bench's JPEG s17 (quality 90, our renderer), cube 2: a magenta face
 27 px wide, turned 24°, with a side face 10 px wide on its right lit 4 % darker (sRGB 204, 84, 226 against
