@@ -1296,9 +1296,14 @@ def _level_step(colours: np.ndarray, bins: np.ndarray, ok: np.ndarray, i: int, m
     fits the blob's outline as the cube's contour)."""
     if i - reach < 0 or i + reach >= len(ok) or not ok[i - reach : i + reach + 1].all():
         return False
-    left, right = (np.median(colours[(bins >= lo) & (bins <= hi)], axis=0)
-                   for lo, hi in ((i - reach, i - 1), (i + 1, i + reach)))
+    left, right = (np.median(px, axis=0) for px in _beside(colours, bins, i, reach))
     return _distinct_levels(left, right, min_contrast)
+
+
+def _beside(colours: np.ndarray, bins: np.ndarray, i: int, reach: int) -> tuple[np.ndarray, np.ndarray]:
+    """The colours of the pixels in the `reach` sheared columns left of column i, and of those right of it."""
+    left, right = (colours[(bins >= lo) & (bins <= hi)] for lo, hi in ((i - reach, i - 1), (i + 1, i + reach)))
+    return left, right
 
 
 EDGE_LINE_LEVEL_REACH = 3
@@ -1320,8 +1325,7 @@ def _same_level(colours: np.ndarray, bins: np.ndarray, i: int, min_contrast: flo
     blur, Mitsuba), the lighting bench and the holdouts 7070, 8080, 9090 and 6060 (PNG, colour and all
     grey), the levels beside that one differ by 0.000, those beside the others by 0.010 (a line 4 px from
     its blob's end) and by 0.019 or more (114 lines)."""
-    left = colours[(bins >= i - reach) & (bins < i)]
-    right = colours[(bins > i) & (bins <= i + reach)]
+    left, right = _beside(colours, bins, i, reach)
     if len(left) < 5 or len(right) < 5:
         return False
     return not _distinct_levels(np.median(left, axis=0), np.median(right, axis=0), 0.5 * min_contrast)
