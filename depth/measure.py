@@ -1598,7 +1598,14 @@ def face_outline(
             fixed = fixed | moved
     outline = _as_outline(model, origin, strip, ramp)
     if faint_sides:
-        outline = replace(outline, faint_side_px=_faint_side_faces(linear[..., :3], model, strip, min_contrast))
+        # the look reads `_FAINT_FACE_OUT_PX` beyond a side and the outside past that, farther than `border`
+        # reaches: in a window of its own (in the outline's, the rim's pixels stood for the outside there)
+        wide = int(np.ceil(_FAINT_FACE_OUT_PX)) + 3
+        fr0, fc0 = max(r0 - wide, 0), max(c0 - wide, 0)
+        window = srgb_to_linear(image[fr0:min(r1 + wide, height), fc0:min(c1 + wide, width), :3])
+        found = _faint_side_faces(window, _shifted(model, c0 - fc0, r0 - fr0), strip, min_contrast,
+                                  by_colour=channels == "colour")
+        outline = replace(outline, faint_side_px=found)
     if others:
         # one off-colour pixel is as well a strip filling it as a mixed pixel of the face, a
         # narrower strip and the outside: the other reading moves each such side from where the
@@ -2261,6 +2268,20 @@ def _fit_one_step(pos, wts, ybar, e_grid, scale, p, q):
     return total - (al * F0 + be * F1), al, be
 
 
+def _outer_step_share(pos, wts, ybar, edge, strip_minus_out) -> float:
+    """How much of a strip's difference from the outside (`strip_minus_out`, (f, r)) the binned profile
+    (pos, wts, ybar) changes by across the strip's outer step at `edge`: the mean of the bins 0.5–1.75 px
+    inside it minus that of the bins 0.5–1.75 px beyond it, in norm, as a fraction of the difference's;
+    0 where either side has no bin. About 1 for a face's edge; a background shading across the band,
+    which the two-step fit also reads as a strip, changes there by a share of it only."""
+    inside = (pos >= edge - 1.75) & (pos <= edge - 0.5)
+    beyond = (pos >= edge + 0.5) & (pos <= edge + 1.75)
+    if not inside.any() or not beyond.any():
+        return 0.0
+    jump = np.average(ybar[inside], axis=0, weights=wts[inside]) - np.average(ybar[beyond], axis=0, weights=wts[beyond])
+    return float(np.linalg.norm(jump)) / max(float(np.linalg.norm(strip_minus_out)), 1e-12)
+
+
 def _fit_two_steps(pos, wts, ybar, E, W, scale, p, q):
     """Least squares of face | strip | outside on the bins for each (e, w): (sse, coef (G, 3), ρ (G, 3)).
 
@@ -2322,10 +2343,12 @@ def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast
     the face's and the outside's, as a fraction of face − outside (0 without a strip).
 
     `reach`: None, or (outer reach of the band, widest strip, narrowest strip called distinct, least
-    difference of the strip's face-ness from the face's and the outside's, as a fraction of theirs) for
-    the look for a faint side face (`_faint_side_faces`), in place of `_ESF_OUT_PX`, `_ESF_MAX_STRIP_PX`
-    and none; a strip that wide is distinct whatever its colour, and read even on a side sampled at one
-    phase.
+    difference of the strip from the face and the outside as a fraction of theirs, whether that
+    difference is taken in full colour or in face-ness alone) for the look for a faint side face
+    (`_faint_side_faces`), in place of `_ESF_OUT_PX`, `_ESF_MAX_STRIP_PX` and none; a strip that wide is
+    distinct whatever its colour, and read even on a side sampled at one phase. The look's strip need not
+    lie inside the one-step edge, and must pass its own tests (`_FAINT_FACE_MIN_GAIN`,
+    `_FAINT_FACE_OUTER_STEP`, `_FAINT_FACE_MIN_LINEAR`).
 
     Pixels in the band around the side are reduced to a face-ness f (projection of the colour on
     c_face − c_out, both measured per station along the side: 1 on the face, 0 outside) and the
@@ -2335,7 +2358,8 @@ def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast
     colour | outside); when the second model explains clearly more, and the strip's colour lies at least
     one pixel's noise from the face's and the outside's (`_ESF_STRIP_NOISE`), the face edge is the inner step."""
     h, w = linear.shape[:2]
-    out_px, max_strip_px, wide_px, min_strip = (_ESF_OUT_PX, _ESF_MAX_STRIP_PX, np.inf, 0.0) if reach is None else reach
+    out_px, max_strip_px, wide_px, min_strip, by_colour = ((_ESF_OUT_PX, _ESF_MAX_STRIP_PX, np.inf, 0.0, True)
+                                                          if reach is None else reach)
     u, v, d, t, n = _side_band(lines, quads, corners, i, (h, w), inner, out_px, margin)
     if len(u) < 40:
         return None
@@ -2436,8 +2460,15 @@ def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast
               E[g2], W[g2], "noise", noise_var, "strip", np.round(strip_lvl, 3), "face", round(al2 + be2, 3), "ph", phases)
     accept = (gain > max(_ESF_MIN_GAIN * sse1, 40.0 * noise_var)
               and contrast >= max(_ESF_MIN_STRIP_CONTRAST * be2, _ESF_STRIP_NOISE * np.sqrt(noise_var))
-              and min(abs(ph2), abs(be2 - ph2)) >= min_strip * be2
-              and be2 > 0.5 and W[g2] >= _ESF_MIN_STRIP_PX and E[g2] <= e_one - 0.15)
+              and (contrast if by_colour else min(abs(ph2), abs(be2 - ph2))) >= min_strip * be2
+              # a strip inside the one-step edge (which lies mid-strip); not for a faint face, whose inner step
+              # is the face's edge (`_faint_side_faces`) and which, lit like the outside and told from it by
+              # its colour, leaves the one-step edge there too
+              and be2 > 0.5 and W[g2] >= _ESF_MIN_STRIP_PX and (reach is not None or E[g2] <= e_one - 0.15))
+    if accept and reach is not None:
+        accept = (gain >= _FAINT_FACE_MIN_GAIN * sse1
+                  and _outer_step_share(pos, wts, ybar, E[g2] + W[g2], strip_lvl - out_lvl) >= _FAINT_FACE_OUTER_STEP
+                  and np.linalg.norm(strip_lvl - out_lvl) * np.sqrt(np.median(dd)) >= _FAINT_FACE_MIN_LINEAR)
     # how far the strip's colour lies off the line between the face's and the outside's (of face − outside)
     off = float(np.linalg.norm(rho[g2]) / be2) if be2 > 0 else 0.0
     # a blur mixes the face and the outside: its tails lie on the segment between their colours, so a
@@ -2740,9 +2771,12 @@ def _jumps_mended(linear, model, margin=2.5):
     return (lines, quads, new_corners, sides, normals, rms, contrast, residuals), jumps
 
 
-_FAINT_FACE_OUT_PX = 7.5
-"""Outer reach (px) of the profile beyond a left or right side in the look for a faint side face."""
-_FAINT_FACE_MAX_PX = 6.0
+_FAINT_FACE_OUT_PX = 10.5
+"""Outer reach (px) of the profile beyond a left or right side in the look for a faint side face, read in a
+window of its own that reaches 3 px farther (`face_outline`). Holdout 6060 s7/1's left side face is
+6.9 px wide; the look reached 7.5 px before, and read it in the outline's window, which ends 8 px beyond
+the face mask: there the rim's pixels, clamped, stood for the outside, which lay inside that face."""
+_FAINT_FACE_MAX_PX = 9.0
 """Widest faint side face looked for (px), with its outer step and a pixel of the outside within that reach."""
 _FAINT_FACE_MIN_PX = 2.5
 """Narrowest faint side face read (px). A blur's tails, and a renderer's pixel filter, read as a strip
@@ -2750,16 +2784,36 @@ about a pixel wide of a colour between the face's and the outside's (`_ESF_BLURR
 a plateau this wide is none of them."""
 _FAINT_FACE_STEP_PX = 0.5
 """Farthest (px) a faint side face's inner step may lie from the side as fitted: that step is the face's edge."""
-_FAINT_FACE_MIN_CONTRAST = 0.1
-"""Least difference in brightness (face-ness, along front face − outside) of a faint side face from the
-outside and from the front face, as a fraction of front face − outside. A sky shading by one level of
-255 six pixels beyond a grey face 32 levels darker (holdout 9090 all grey s6/1, a cube facing the axis,
-its sky free of noise) passed the thin-strip pass's tests as a face 5.9 px wide at 0.06 (with a tinge of
-colour), and the cube came out 16.7 % off instead of 1.3 %; the faint side face of 8080 s5/1 lies at
-0.22."""
+_FAINT_FACE_OUTER_STEP = 0.6
+"""Least share of a faint side face's difference from the outside that its outer step holds
+(`_outer_step_share`). A sky shading off over the band beyond a narrow face (ten levels of 255 across it)
+fits the two-step model as a strip 6–9 px wide (holdout 7070 all grey s0/0, s0/1, s4/3; 8080 s5/3),
+its outer step holding 0.35–0.39 of it; the side faces of 8080 s5/1, 6060 s3/0 and 6060 s7/1 hold 0.97,
+0.91 and 0.82."""
+_FAINT_FACE_MIN_CONTRAST = 0.05
+"""Least difference of a faint side face's colour from the outside's and from the front face's, in full
+colour (the face-ness along front face − outside and the colour left over), as a fraction of front
+face − outside. A side face lit as brightly as the sky beyond it differs from it in colour only: holdout
+6060 s7/1, a grey face under a blue sky, at 0.095 (face-ness 0.006), read as no face there and 13.8 % off
+at +5.1 σ; 8080 s5/1's lies at 0.22. (Before, the look asked for a face-ness of 0.1: a sky shading by a
+level of 255 beyond a grey face 32 levels darker, 9090 all grey s6/1, had read as a face 5.9 px wide at
+0.06, in the outline's window whose rim stood for the outside; it reads none now.)"""
+_FAINT_FACE_MIN_BRIGHTNESS = 0.1
+"""The same in face-ness alone, for images whose chroma is subsampled (outlined on "luma": JPEG). There
+a colour difference alone is the coder's: beside narrow faces of the holdouts' JPEG images (8080 all grey
+s0/1, s2/3; 9090 all grey s0/3, all with no side face showing) strips 3.3–5.7 px wide differed from the
+outside by 0.065–0.125 in full colour, but by 0.04–0.08 in face-ness."""
+_FAINT_FACE_MIN_LINEAR = 0.01
+"""Least difference (linear RGB, norm) of a faint side face from the outside: about two levels of 255 at
+mid tones. Beside a white face only 4–8 levels from the light grey beyond it (holdout 8080 all grey
+s2/0), a level's step of the background 7 px out read as a face 7 px wide, 0.12 of that small contrast."""
+_FAINT_FACE_MIN_GAIN = 0.5
+"""Least share of the one-step fit's misfit that a faint side face's two-step fit removes. The side
+faces read on the holdouts remove 0.84–0.97 of it (a synthetic one 4 px wide under 4 levels of noise,
+0.60); beside the same white face in its JPEG image, strips about 8 px wide removed 0.37–0.40."""
 
 
-def _faint_side_faces(linear, model, strip, min_contrast) -> np.ndarray:
+def _faint_side_faces(linear, model, strip, min_contrast, by_colour: bool = True) -> np.ndarray:
     """How far (px) beyond the left and right sides of a refined model lies the outer edge of a side face
     that the edge-spread pass did not reach (`FaceOutline.faint_side_px`), (2,), 0 where none.
 
@@ -2770,22 +2824,40 @@ def _faint_side_faces(linear, model, strip, min_contrast) -> np.ndarray:
     The two-step model of `_esf_side_mode` is fitted once more with a band reaching `_FAINT_FACE_OUT_PX`
     beyond the side; a strip `_FAINT_FACE_MIN_PX` to `_FAINT_FACE_MAX_PX` wide that passes its tests is
     read, whatever its colour and however the side samples the pixel grid (a plateau that wide is no
-    blur's tail and no mixed pixel). In full colour only: the faces of a cube without colour differ from
-    what lies beyond them in brightness (on chroma as well, the look took half the outline's time). Only
-    where the pass found no thin strip beside either side (a cube shows at most one of its left and right
-    faces), and not where both sides read one."""
+    blur's tail and no mixed pixel). In full colour only, not on chroma (the look took half the outline's
+    time there): a face told from the outside by its colour alone (a grey side face lit like a blue sky,
+    holdout 6060 s7/1) stands out in full colour too, and `by_colour` lets that colour count
+    (`_FAINT_FACE_MIN_CONTRAST`); without it (chroma-subsampled images) only its brightness does
+    (`_FAINT_FACE_MIN_BRIGHTNESS`). Such a face leaves the one-step edge at the face's edge, where a
+    thin strip's would lie mid-strip, so that test of `_esf_side_mode` is not made here. A shading of the
+    outside across the band is no face (`_FAINT_FACE_OUTER_STEP`), nor a step of a level or two
+    (`_FAINT_FACE_MIN_LINEAR`), nor a strip that leaves most of the one-step misfit
+    (`_FAINT_FACE_MIN_GAIN`). Only where the pass found no thin strip beside either side (a cube shows at
+    most one of its left and right faces), and not where both sides read one."""
     lines, quads, corners = model[0], model[1], model[2]
     out = np.zeros(2)
     if strip[0] > 0 or strip[1] > 0:
         return out
     for i in (0, 1):
         res = _esf_side_mode(linear, lines, quads, corners, i, _esf_inner_px(corners, i), 2.5, min_contrast, False,
-                             (_FAINT_FACE_OUT_PX, _FAINT_FACE_MAX_PX, _FAINT_FACE_MIN_PX, _FAINT_FACE_MIN_CONTRAST))
+                             (_FAINT_FACE_OUT_PX, _FAINT_FACE_MAX_PX, _FAINT_FACE_MIN_PX,
+                              _FAINT_FACE_MIN_CONTRAST if by_colour else _FAINT_FACE_MIN_BRIGHTNESS, by_colour))
         # its inner step is the face's edge, where the side was fitted (a strip found inside the face is
         # the face's own shading: a floor scene's grey face read 2.6 px in, its cube then 24 % off)
         if res is not None and res[5] and res[1] >= _FAINT_FACE_MIN_PX and abs(res[0]) <= _FAINT_FACE_STEP_PX:
             out[i] = res[0] + res[1]  # the face's inner step and its width
     return out if np.count_nonzero(out) < 2 else np.zeros(2)
+
+
+def _shifted(model, du: float, dv: float) -> tuple:
+    """The lines, quadratics and corners of a refined model in a window whose origin lies (du, dv) px
+    before its own (u' = u + du, v' = v + dv)."""
+    lines, quads = np.array(model[0], dtype=np.float64), np.array(model[1], dtype=np.float64)
+    lines[:, 1] += du - lines[:, 0] * dv  # u = a·v + b
+    qa, qb, qc = quads[:, 0].copy(), quads[:, 1].copy(), quads[:, 2].copy()  # v = qa·u² + qb·u + qc
+    quads[:, 1] = qb - 2.0 * qa * du
+    quads[:, 2] = qa * du * du - qb * du + qc + dv
+    return lines, quads, np.asarray(model[2], dtype=np.float64) + [du, dv]
 
 
 def _shift_side(lines, quads, corners, i, e):
