@@ -1603,8 +1603,10 @@ def face_outline(
         wide = int(np.ceil(_FAINT_FACE_OUT_PX)) + 3
         fr0, fc0 = max(r0 - wide, 0), max(c0 - wide, 0)
         window = srgb_to_linear(image[fr0:min(r1 + wide, height), fc0:min(c1 + wide, width), :3])
-        found = _faint_side_faces(window, _shifted(model, c0 - fc0, r0 - fr0), strip, min_contrast,
-                                  by_colour=channels == "colour")
+        shift = np.array([c0 - fc0, r0 - fr0], dtype=np.float64)
+        moved = (_shift_lines(np.asarray(model[0]), shift), _shift_quadratics(np.asarray(model[1]), shift),
+                 model[2] + shift)
+        found = _faint_side_faces(window, moved, strip, min_contrast, by_colour=channels == "colour")
         outline = replace(outline, faint_side_px=found)
     if others:
         # one off-colour pixel is as well a strip filling it as a mixed pixel of the face, a
@@ -2847,17 +2849,6 @@ def _faint_side_faces(linear, model, strip, min_contrast, by_colour: bool = True
         if res is not None and res[5] and res[1] >= _FAINT_FACE_MIN_PX and abs(res[0]) <= _FAINT_FACE_STEP_PX:
             out[i] = res[0] + res[1]  # the face's inner step and its width
     return out if np.count_nonzero(out) < 2 else np.zeros(2)
-
-
-def _shifted(model, du: float, dv: float) -> tuple:
-    """The lines, quadratics and corners of a refined model in a window whose origin lies (du, dv) px
-    before its own (u' = u + du, v' = v + dv)."""
-    lines, quads = np.array(model[0], dtype=np.float64), np.array(model[1], dtype=np.float64)
-    lines[:, 1] += du - lines[:, 0] * dv  # u = a·v + b
-    qa, qb, qc = quads[:, 0].copy(), quads[:, 1].copy(), quads[:, 2].copy()  # v = qa·u² + qb·u + qc
-    quads[:, 1] = qb - 2.0 * qa * du
-    quads[:, 2] = qa * du * du - qb * du + qc + dv
-    return lines, quads, np.asarray(model[2], dtype=np.float64) + [du, dv]
 
 
 def _shift_side(lines, quads, corners, i, e):
