@@ -772,12 +772,18 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         fixes (a for left/right points, b for top/bottom ones) and the one it measures, (P, N) each (the
         points along the last axis: numpy's loops then run over them, not over the few edges), and
         their w (P, 1). Per side or top face: the slice of its 4 edges, its frame axis and its sign, for
-        the visibility test (the front face is always seen). Each face images as a convex quadrilateral,
-        so a line's largest crossing of it is on an edge."""
+        the visibility test (the front face is always seen), and the points it may bound (N,). Each face
+        images as a convex quadrilateral, so a line's largest crossing of it is on an edge.
+
+        A face beyond the opposite side never bounds a side: the front face's own edge lies between. A
+        point whose line misses the front face (past a corner of the placed face) and crosses only such a
+        face was read a whole face width off, and stayed so at the poses nearby, its pixel scale the far
+        edge's (a JPEG face 40 % off at −14.6 σ: bench/README, sixtieth session)."""
         pr = np.array([(f[i], f[(i + 1) % 4]) for f, _, _ in faces for i in range(4)])
         fixed = np.where(front_lr, _VERTS[:, 0:1], _VERTS[:, 1:2])  # (8, N)
         measured = np.where(front_lr, _VERTS[:, 1:2], _VERTS[:, 0:1])
-        seen = [(slice(4 * i, 4 * i + 4), a, sg) for i, (_, a, sg) in enumerate(faces) if a is not None]
+        seen = [(slice(4 * i, 4 * i + 4), a, sg, ~(((a == 1) == front_lr) & (front_sign != sg)))
+                for i, (_, a, sg) in enumerate(faces) if a is not None]
         return {"x0": fixed[pr[:, 0]], "x1": fixed[pr[:, 1]], "y0": measured[pr[:, 0]], "y1": measured[pr[:, 1]],
                 "w0": _VERTS[pr[:, 0], 2:3], "w1": _VERTS[pr[:, 1], 2:3], "seen": seen}
 
@@ -800,7 +806,8 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         cube's vertices are carried along the point's ray onto the face plane, the union's extent
         along the point's row (left/right) or column (top/bottom) is the largest crossing of a face's
         edge, and the residual is the point's coordinate minus that extent. A point beyond
-        the union's span keeps its front-edge residual. (Its divisions by zero are silenced by `_exact`'s
+        the union's span, or whose line crosses only a face beyond the opposite side, keeps its
+        front-edge residual. (Its divisions by zero are silenced by `_exact`'s
         errstate: a context of its own on each call took 6 % of its time, line-profiled.)"""
         s1 = s[:, None]
         dn = axes[:, 2] @ r.T
@@ -826,11 +833,12 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         y0 += y1
         crossed = t >= 0  # (NaN and ±inf for edges along the line fail one test or the other)
         crossed &= t <= 1
-        for rows, axis, sg in edges["seen"]:
+        for rows, axis, sg, bounds in edges["seen"]:
             # a side/top face is seen where its back edge moves outward (σ·shift > 0; σ is ±1); hidden faces
-            # image inside the others and are left out (one hidden behind a seen top face would poke out)
+            # image inside the others and are left out (one hidden behind a seen top face would poke out);
+            # it bounds only the points `face_edges` allows it
             shift = shift_a if axis == 0 else shift_b
-            crossed[:, rows] &= (shift > 0 if sg > 0 else shift < 0)[:, None]
+            crossed[:, rows] &= ((shift > 0 if sg > 0 else shift < 0) & bounds)[:, None]
         y0 *= front_sign
         np.copyto(y0, -np.inf, where=~crossed)
         extent = y0.max(axis=1)
