@@ -1169,10 +1169,10 @@ def _split_by_brightness(value: np.ndarray, chroma: np.ndarray, blob: np.ndarray
     grad = np.hypot(scipy.ndimage.sobel(smooth, axis=0), scipy.ndimage.sobel(smooth, axis=1)) / 8.0
     noise = float(np.percentile(grad[blob], 30))
     flat = blob & (grad < max(0.25 * min_contrast, 5.0 * noise))
-    n, lab, stats, _ = cv2.connectedComponentsWithStats(flat.astype(np.uint8), connectivity=4)
-    if n <= 1:
+    core = _largest_component(flat)
+    if core is None:
         return _clean_region(blob), []
-    core = _one_level(lab == 1 + int(np.argmax(stats[1:, 4])), value, min_contrast)
+    core = _one_level(core, value, min_contrast)
     level = float(np.median(value[core]))
     spread = 1.4826 * float(np.median(np.abs(value[core] - level)))
     tol = max(0.5 * min_contrast, 3.0 * spread)
@@ -1182,7 +1182,7 @@ def _split_by_brightness(value: np.ndarray, chroma: np.ndarray, blob: np.ndarray
         front |= cv2.dilate(front.astype(np.uint8), _CROSS).astype(bool) & similar
     front = _clean_region(front)
     rest = cv2.morphologyEx((blob & ~front).astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
-    n, lab, stats, _ = cv2.connectedComponentsWithStats(rest, connectivity=4)
+    _, lab, stats, _ = cv2.connectedComponentsWithStats(rest, connectivity=4)
     sides = [lab == j for j in 1 + np.argsort(-stats[1:, 4]) if stats[j, 4] >= 10]
     return front, sides
 
@@ -1224,10 +1224,9 @@ def _one_level(core: np.ndarray, value: np.ndarray, min_contrast: float) -> np.n
     for side in (False, True):
         part = np.zeros_like(core)
         part[core] = high == side
-        n, lab, stats, _ = cv2.connectedComponentsWithStats(part.astype(np.uint8), connectivity=4)
-        if n <= 1:
+        if (largest := _largest_component(part)) is None:
             return core
-        parts.append(lab == 1 + int(np.argmax(stats[1:, 4])))
+        parts.append(largest)
     small = min(parts, key=lambda p: int(p.sum()))
     # the smaller level's region must be face-sized: LEVEL_SPLIT_MIN_PX across where widest
     inscribed = cv2.distanceTransform(np.pad(small, 1).astype(np.uint8), cv2.DIST_L2, 5)
@@ -1454,11 +1453,14 @@ def _clean_region(mask: np.ndarray) -> np.ndarray:
     """Fill holes, cut one-pixel spurs, keep the largest component."""
     filled = _holes_filled(mask)
     opened = cv2.morphologyEx(filled.astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
-    n, lab, stats, _ = cv2.connectedComponentsWithStats(opened, connectivity=4)
-    if n <= 1:
-        return filled
-    best = 1 + int(np.argmax(stats[1:, 4]))
-    return lab == best
+    largest = _largest_component(opened)
+    return filled if largest is None else largest
+
+
+def _largest_component(mask: np.ndarray) -> np.ndarray | None:
+    """The largest 4-connected component of `mask` (bool or uint8), or None where it is empty."""
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=4)
+    return None if n <= 1 else lab == 1 + int(np.argmax(stats[1:, 4]))
 
 
 # ------------------------------------------------------------------------------- edges
