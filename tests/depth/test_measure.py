@@ -2478,3 +2478,43 @@ def test_a_strip_of_another_level_narrower_than_a_face_stays_in_the_flat_region(
     value[:rows] += 0.1
     core = np.ones(value.shape, dtype=bool)
     np.testing.assert_array_equal(_one_level(core, value, 0.03), core)
+
+
+MITSUBA_ROW_SIDE_MASK = Path(__file__).resolve().parents[1] / "data" / "mitsuba_grey_9090_s3_row_side_mask.png"
+
+
+def test_a_mask_whose_side_lies_in_one_row_has_no_clear_side_and_no_polyfit_warning():
+    """``mitsuba_grey_9090_s3_row_side_mask.png``: a blob and face union `reconstruct` outlined in holdout 9090's
+    grey scene 3 (a face cut by a shadow into fragments). The boundary points its first fit gives the left
+    side all lie in one row, so a line u(v) through them has no direction: numpy's polyfit warned that it
+    was poorly conditioned (printed to the user of `catadioptric reconstruct`) and returned a side line
+    through nothing. `_initial_model` names the side it cannot fit instead, with no warning."""
+    import warnings
+
+    import cv2
+
+    from depth.measure import _initial_model
+
+    mask = cv2.imread(str(MITSUBA_ROW_SIDE_MASK), cv2.IMREAD_GRAYSCALE) > 127
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        model = _initial_model(mask)
+    assert isinstance(model, FailedMeasurement)
+    assert model.reason == "face mask has no clear left side"
+
+
+@given(width=st.integers(8, 40), height=st.integers(8, 60), x0=st.integers(0, 6), y0=st.integers(0, 6))
+def test_the_first_fit_of_a_rectangular_mask_lies_on_its_boundary(width, height, x0, y0):
+    """`_initial_model` on a filled rectangle (pixels x0 … x0 + width − 1, y0 … y0 + height − 1): its sides are
+    the pixel edges, u = x0 − 0.5 and x0 + width − 0.5, v = y0 − 0.5 and y0 + height − 0.5, to within a
+    tenth of a pixel, and the side check leaves every rectangle its four sides."""
+    from depth.measure import _initial_model
+
+    mask = np.zeros((y0 + height + 8, x0 + width + 8), dtype=bool)
+    mask[y0 + 4:y0 + 4 + height, x0 + 4:x0 + 4 + width] = True
+    model = _initial_model(mask)
+    assert not isinstance(model, FailedMeasurement), model
+    corners = model[2]
+    expected = np.array([[x0 + 3.5, y0 + 3.5], [x0 + width + 3.5, y0 + 3.5],
+                         [x0 + width + 3.5, y0 + height + 3.5], [x0 + 3.5, y0 + height + 3.5]])
+    np.testing.assert_allclose(corners, expected, atol=0.1)
