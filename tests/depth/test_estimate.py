@@ -1154,6 +1154,65 @@ def test_the_sigma_of_a_tilt_that_still_misfits_covers_the_upright_reading():
     assert abs(found.depth - depth) < 3.0 * found.depth_std
 
 
+MITSUBA_GREY_TILTED_JPEG = Path(__file__).resolve().parents[1] / "data" / "mitsuba_grey_6060_s7_1_jpeg.png"
+"""A 96×176 crop, from (696, 760), of a Mitsuba 3 render (16 spp) put through the reconstruct bench's JPEG
+coder (the holdout `python -m bench.holdout 6060 --jpeg`, scene 7, cube 1), on its 8×8 block grid: a grey
+cube 5.15 cm across turned 11.5° from the mirror axis, upright, its front face 25 px wide."""
+
+
+def test_a_tilt_kept_is_no_surer_than_the_upright_reading_it_replaced(monkeypatch):
+    """The whole pipeline on the crop, the camera the render's with its principal point moved to the crop's.
+    No upright face explains the edges (0.37 px rms) and stage 2 tilts the face 10.3°, fitting them at
+    0.17 px, under the upright limit; the tilt followed a bias of the edges, not the pose (the cube is
+    upright, and the upright reading is as far off). With its σ read at the misfit the tilt left, the cube
+    was 13.7 % off at +7.1 σ in depth, while the upright reading's σ was 2.3 times as wide. Each σ of the
+    tilted reading is at least the upright one's (that reading found by `exact` with stage 2 turned off),
+    and the depth lies within 3.5 σ."""
+    import cv2
+
+    import depth.estimate
+    from depth.reconstruct import reconstruct
+    from raytrace.camera import PinholeCamera
+    from raytrace.mirror import CylinderMirror
+
+    image = cv2.cvtColor(cv2.imread(str(MITSUBA_GREY_TILTED_JPEG)), cv2.COLOR_BGR2RGB)
+    camera = PinholeCamera.from_look_at((96, 176), (2454.543, 2454.543), (639.5 - 696, 479.5 - 760),
+                                        (0.0, -0.02229, 0.94329), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0))
+    mirror = CylinderMirror(0.1354, 0.69512, (0, 0, 0), (0, 1, 0))
+    readings = []
+    for upright_limit in (depth.estimate.UPRIGHT_MISFIT_PX, np.inf):
+        monkeypatch.setattr(depth.estimate, "UPRIGHT_MISFIT_PX", upright_limit)
+        rec = reconstruct(image, camera, mirror, compressed=True, workers=1)
+        assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
+        readings.append(rec.cubes[0])
+    tilted, upright = readings
+    assert abs(tilted.estimate.normal[1]) > np.sin(np.deg2rad(5.0))  # the tilt is kept
+    assert upright.estimate.normal[1] == pytest.approx(0.0, abs=1e-9)
+    for key in ("z", "size", "center"):
+        assert tilted.estimate.std[key] >= upright.estimate.std[key] * (1 - 1e-9), key
+    true_depth = float(mirror.distance_to_axis(np.array([[0.19693, -0.16089, 0.40524]]))[0])
+    assert abs(tilted.depth - true_depth) < 3.5 * tilted.depth_std
+
+
+@pytest.mark.parametrize("roll", [5.0, 10.0, -20.0])
+def test_a_face_truly_turned_in_its_plane_keeps_the_sigma_of_its_own_fit(rig, roll):
+    """A cube rolled about its front face's normal, its edges read with 0.05 px of scatter: no upright pose
+    explains them (over `MAX_EDGE_MISFIT_PX`: 1.2 px at 5°), so the upright reading is no candidate, and
+    the tilted reading's σ stays its own: within 1.5 times the σ of the same cube unrolled, and the centre
+    within 3 σ. (Widened to the upright fit's σ, its depth σ was 36–83 times as wide.)"""
+    readings = []
+    for angle in (roll, 0.0):
+        cube = rig.cube(0.5, 10.0, roll_deg=angle)
+        est = estimate_face(rig.rays, rig.measure(cube, noise_px=0.05, seed=0, gaps=True), method="exact",
+                            up=rig.mirror.axis)
+        assert est, est.reason
+        readings.append((cube, est))
+    (cube, rolled), (_, unrolled) = readings
+    assert np.linalg.norm(rolled.center - cube.center) < 3.0 * rolled.std["center"]
+    for key in ("z", "size", "center"):
+        assert rolled.std[key] < 1.5 * unrolled.std[key], key
+
+
 MITSUBA_GREY_HORIZON = Path(__file__).resolve().parents[1] / "data" / "mitsuba_grey_8080_s1_3.png"
 """An 89×155 crop, from (597, 725), of a Mitsuba 3 render (16 spp; the holdout `python -m bench.holdout 8080`,
 scene 1, cube 3): a light grey cube 2.8 cm across standing across the horizon, whose left side against
