@@ -1819,8 +1819,8 @@ def _initial_model(mask: np.ndarray):
         ~horizontal & (normals[:, 1] > 0) & (points[:, 1] > vc),
     ]
     for k, (name, grp) in enumerate(zip(SIDE_NAMES, groups)):
-        # a side is fitted as a function of its run (v for left and right, u for top and bottom): points all
-        # in one row or column (a mask's end a pixel wide) give it no direction
+        # a side is fitted as a function of its run (v for left and right, u for top and bottom): boundary
+        # points all in one row or column (a fragmented mask's) give it no direction
         if grp.sum() < 3 or np.ptp(points[grp, 1 if k < 2 else 0]) < 1.0:
             return FailedMeasurement(f"face mask has no clear {name} side")
     lines = np.array([_robust_polyfit(points[g, 1], points[g, 0], 1)[0] for g in groups[:2]])

@@ -12,6 +12,19 @@ from depth.errors import DepthError
 from depth.estimate import NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, FaceMeasurement, estimate_face, expected_work
 
 
+def _crop_setup(path, crop_size, focal, principal, position, radius, height):
+    """A crop of a held-out render and its setup: the image (RGB), the render's camera (looking at the
+    mirror's centre, y up) with its principal point moved to the crop's, and the mirror about the y axis."""
+    import cv2
+
+    from raytrace.camera import PinholeCamera
+    from raytrace.mirror import CylinderMirror
+
+    image = cv2.cvtColor(cv2.imread(str(path)), cv2.COLOR_BGR2RGB)
+    camera = PinholeCamera.from_look_at(crop_size, (focal, focal), principal, position, (0.0, 0.0, 0.0), (0.0, 1.0, 0.0))
+    return image, camera, CylinderMirror(radius, height, (0, 0, 0), (0, 1, 0))
+
+
 def centre_error(rig, est, cube):
     return np.linalg.norm(est.center - cube.center) / rig.depth(cube)
 
@@ -1055,16 +1068,10 @@ def test_the_depth_sigma_of_a_merged_turned_face_covers_the_turns_that_fit_as_we
     where the trust region starts tiny, left the turn that fits twice as well unplaced: the depth was
     reported at ±1.5 %, 21 σ off. The σ must cover the depth (within 3 σ) and stay a bound worth having
     (under half the depth). The camera is the render's, its principal point moved to the crop's."""
-    import cv2
-
     from depth.reconstruct import reconstruct
-    from raytrace.camera import PinholeCamera
-    from raytrace.mirror import CylinderMirror
 
-    image = cv2.cvtColor(cv2.imread(str(MITSUBA_DARK_TURNED)), cv2.COLOR_BGR2RGB)
-    camera = PinholeCamera.from_look_at((94, 177), (4202.017, 4202.017), (1023.5 - 909, 767.5 - 559),
-                                        (0.0, -0.01612, 0.57268), (0, 0, 0), (0, 1, 0))
-    mirror = CylinderMirror(0.0849, 0.48976, (0, 0, 0), (0, 1, 0))
+    image, camera, mirror = _crop_setup(MITSUBA_DARK_TURNED, (94, 177), 4202.017, (1023.5 - 909, 767.5 - 559),
+                                        (0.0, -0.01612, 0.57268), 0.0849, 0.48976)
     rec = reconstruct(image, camera, mirror, workers=1)
     assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
     (found,) = rec.cubes
@@ -1168,17 +1175,11 @@ def test_a_tilt_kept_is_no_surer_than_the_upright_reading_it_replaced(monkeypatc
     was 13.7 % off at +7.1 σ in depth, while the upright reading's σ was 2.3 times as wide. Each σ of the
     tilted reading is at least the upright one's (that reading found by `exact` with stage 2 turned off),
     and the depth lies within 3.5 σ."""
-    import cv2
-
     import depth.estimate
     from depth.reconstruct import reconstruct
-    from raytrace.camera import PinholeCamera
-    from raytrace.mirror import CylinderMirror
 
-    image = cv2.cvtColor(cv2.imread(str(MITSUBA_GREY_TILTED_JPEG)), cv2.COLOR_BGR2RGB)
-    camera = PinholeCamera.from_look_at((96, 176), (2454.543, 2454.543), (639.5 - 696, 479.5 - 760),
-                                        (0.0, -0.02229, 0.94329), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0))
-    mirror = CylinderMirror(0.1354, 0.69512, (0, 0, 0), (0, 1, 0))
+    image, camera, mirror = _crop_setup(MITSUBA_GREY_TILTED_JPEG, (96, 176), 2454.543, (639.5 - 696, 479.5 - 760),
+                                        (0.0, -0.02229, 0.94329), 0.1354, 0.69512)
     readings = []
     for upright_limit in (depth.estimate.UPRIGHT_MISFIT_PX, np.inf):
         monkeypatch.setattr(depth.estimate, "UPRIGHT_MISFIT_PX", upright_limit)
@@ -1290,16 +1291,10 @@ def test_a_jpeg_grey_cube_with_a_merged_side_face_is_read_turned():
     40 % off at −14.6 σ (in 3 of 5 crops of the cube; in the others the starts' basin fell the other way,
     1.77 % off). The cube comes out turned as it is (within 3°), within 3 % of its centre and within 2 σ of
     its depth."""
-    import cv2
-
     from depth.reconstruct import reconstruct
-    from raytrace.camera import PinholeCamera
-    from raytrace.mirror import CylinderMirror
 
-    image = cv2.cvtColor(cv2.imread(str(MITSUBA_GREY_JPEG_TURNED)), cv2.COLOR_BGR2RGB)
-    camera = PinholeCamera.from_look_at((96, 192), (2862.498, 2862.498), (799.5 - 736, 599.5 - 784),
-                                        (0.0, -2e-05, 0.40053), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0))
-    mirror = CylinderMirror(0.08022, 0.39343, (0, 0, 0), (0, 1, 0))
+    image, camera, mirror = _crop_setup(MITSUBA_GREY_JPEG_TURNED, (96, 192), 2862.498, (799.5 - 736, 599.5 - 784),
+                                        (0.0, -2e-05, 0.40053), 0.08022, 0.39343)
     rec = reconstruct(image, camera, mirror, compressed=True, workers=1)
     assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
     (found,) = rec.cubes
@@ -1324,16 +1319,10 @@ def test_a_jpeg_black_cube_whose_top_face_step_is_smeared_is_read_without_its_to
     the top face: the face read as tall as both, its top side on the top face's far edge, fitted a cube
     8.96 cm across 3 cm too far, to 0.09 px, 9.5 % off at +17.7 σ (+32.7 σ in the whole image). The cube
     comes out within 1 % of its centre, within 2 σ of its depth and within 1 % of its size."""
-    import cv2
-
     from depth.reconstruct import reconstruct
-    from raytrace.camera import PinholeCamera
-    from raytrace.mirror import CylinderMirror
 
-    image = cv2.cvtColor(cv2.imread(str(MITSUBA_BLACK_JPEG_TOP)), cv2.COLOR_BGR2RGB)
-    camera = PinholeCamera.from_look_at((224, 560), (4179.281, 4179.281), (1023.5 - 1304, 767.5 - 976),
-                                        (0.0, 0.01971, 0.63587), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0))
-    mirror = CylinderMirror(0.11266, 0.66899, (0, 0, 0), (0, 1, 0))
+    image, camera, mirror = _crop_setup(MITSUBA_BLACK_JPEG_TOP, (224, 560), 4179.281, (1023.5 - 1304, 767.5 - 976),
+                                        (0.0, 0.01971, 0.63587), 0.11266, 0.66899)
     rec = reconstruct(image, camera, mirror, compressed=True, workers=1)
     assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
     (found,) = rec.cubes
