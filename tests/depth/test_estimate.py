@@ -1224,17 +1224,9 @@ def test_a_light_grey_cube_whose_side_against_the_sky_is_faint_is_reconstructed_
     """The whole pipeline on the crop, the camera the render's with its principal point moved to the
     crop's: the cube, missed before its faint side was traced, is found, and its depth lies within 3 σ
     (its 3 px side face merged with the front face leaves the turn loose: 34 % off at ±25 %)."""
-    import cv2
-
     from depth.reconstruct import reconstruct
-    from raytrace.camera import PinholeCamera
-    from raytrace.mirror import CylinderMirror
 
-    image = cv2.cvtColor(cv2.imread(str(MITSUBA_GREY_HORIZON)), cv2.COLOR_BGR2RGB)
-    s, c = 0.0096190688, 0.9999537357
-    camera = PinholeCamera((89, 155), [[4019.265, 0.0, 799.5 - 597], [0.0, 4019.265, 599.5 - 725], [0.0, 0.0, 1.0]],
-                           [[1.0, 0.0, 0.0], [0.0, -c, -s], [0.0, s, -c]], (0.0, -0.00784, 0.81501))
-    mirror = CylinderMirror(0.11706, 0.54213, (0, 0, 0), (0, 1, 0))
+    image, camera, mirror = _crop_setup(MITSUBA_GREY_HORIZON, (89, 155), 4019.265, (799.5 - 597, 599.5 - 725), (0.0, -0.00784, 0.81501), 0.11706, 0.54213)
     rec = reconstruct(image, camera, mirror, workers=1)
     assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
     (found,) = rec.cubes
@@ -1255,17 +1247,9 @@ def test_a_grey_cube_whose_side_face_is_lit_like_the_sky_is_reconstructed_within
     Read with no face beside its left side, `exact` turned the cube to hide one and then tilted it 10°:
     13.8 % off at +5.1 σ. The side face is read beyond the left side, and the cube comes out upright
     within 2 % of its centre and within 2 σ of its depth."""
-    import cv2
-
     from depth.reconstruct import reconstruct
-    from raytrace.camera import PinholeCamera
-    from raytrace.mirror import CylinderMirror
 
-    image = cv2.cvtColor(cv2.imread(str(MITSUBA_GREY_SKY_SIDE)), cv2.COLOR_BGR2RGB)
-    s, c = 0.02362347, 0.99972093
-    camera = PinholeCamera((96, 168), [[2454.543, 0.0, 639.5 - 696], [0.0, 2454.543, 479.5 - 764], [0.0, 0.0, 1.0]],
-                           [[1.0, 0.0, 0.0], [0.0, -c, -s], [0.0, s, -c]], (0.0, -0.02229, 0.94329))
-    mirror = CylinderMirror(0.1354, 0.69512, (0, 0, 0), (0, 1, 0))
+    image, camera, mirror = _crop_setup(MITSUBA_GREY_SKY_SIDE, (96, 168), 2454.543, (639.5 - 696, 479.5 - 764), (0.0, -0.02229, 0.94329), 0.1354, 0.69512)
     rec = reconstruct(image, camera, mirror, workers=1)
     assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
     (found,) = rec.cubes
