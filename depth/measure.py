@@ -1204,8 +1204,9 @@ def _one_level(core: np.ndarray, value: np.ndarray, min_contrast: float) -> np.n
     step smeared by JPEG) leaves no edge pixels, and the flat region runs across it. Two faces show as two
     levels: the core's values split in two (Otsu) lie `min_contrast` or more apart, each part spread over
     under a quarter of that (a shading ramp, split so, spreads each part over about 0.37 of the distance
-    between their levels) and the smaller level spans a face (`LEVEL_SPLIT_MIN_PX`). The largest connected
-    region of either level is the core then."""
+    between their levels) and the smaller level spans a face (`LEVEL_SPLIT_MIN_PX`). The core is then cut to
+    the largest connected region left once the smaller level's largest region, with what it encloses, is
+    taken out."""
     from skimage.filters import threshold_otsu
 
     values = value[core]
@@ -1232,7 +1233,10 @@ def _one_level(core: np.ndarray, value: np.ndarray, min_contrast: float) -> np.n
     inscribed = cv2.distanceTransform(np.pad(small, 1).astype(np.uint8), cv2.DIST_L2, 5)
     if 2.0 * float(inscribed.max()) < LEVEL_SPLIT_MIN_PX:
         return core
-    return max(parts, key=lambda p: int(p.sum()))
+    # the core less that region and what it encloses: a value the noise carried nearer the other level is a
+    # pixel of the face it lies in, not of the other one
+    kept = _largest_component(core & ~_holes_filled(small))
+    return core if kept is None else kept
 
 
 # ------------------------------------------------------------------ geometric face split
