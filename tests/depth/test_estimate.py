@@ -1235,6 +1235,31 @@ def test_a_light_grey_cube_whose_side_against_the_sky_is_faint_is_reconstructed_
     assert abs(found.depth - depth) < 3.0 * found.depth_std
 
 
+MITSUBA_YELLOW_TOP_STRIP = Path(__file__).resolve().parents[1] / "data" / "mitsuba_yellow_5050_s2_1.png"
+"""A 64×96 crop, from (797, 530), of a Mitsuba 3 render (16 spp; the holdout `python -m bench.holdout 5050`,
+scene 2, cube 1): a yellow cube 3.1 cm across, 0.77 m from the mirror axis, its front face 9 px wide and
+52 px tall under its top face, a lighter strip 1–2 px tall, before a bright sky."""
+
+
+def test_a_narrow_face_under_a_thin_top_face_is_reconstructed_within_its_sigma():
+    """The whole pipeline on the crop, the camera the render's with its principal point moved to the
+    crop's. The top side's edge points, read across the thin top face, leaned its line pass after pass
+    until its profiles lost the edge, and the cube was refused ("top side: 1 edge points with contrast");
+    its top side following the slope of its bottom side's fit, the face is outlined and the cube found
+    where it is, its depth and size within 2 σ."""
+    from depth.reconstruct import reconstruct
+
+    image, camera, mirror = _crop_setup(MITSUBA_YELLOW_TOP_STRIP, (64, 96), 1610.314, (639.5 - 797, 479.5 - 530),
+                                        (0.0, -0.00434, 0.37382), 0.08513, 0.45909)
+    rec = reconstruct(image, camera, mirror, workers=1)
+    assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
+    (found,) = rec.cubes
+    assert np.allclose(np.mean(found.corners_px, axis=0), [32.3, 47.7], atol=1.0)  # the truth's, in the crop
+    depth = float(mirror.distance_to_axis(np.array([[0.60255, -0.05216, 0.47486]]))[0])
+    assert abs(found.depth - depth) < 2.0 * found.depth_std
+    assert abs(found.estimate.size - 0.031) < 2.0 * found.estimate.std["size"]
+
+
 MITSUBA_GREY_SKY_SIDE = Path(__file__).resolve().parents[1] / "data" / "mitsuba_grey_6060_s7_1.png"
 """A 96×168 crop, from (696, 764), of a Mitsuba 3 render (16 spp; the holdout `python -m bench.holdout 6060`,
 scene 7, cube 1): a grey cube 5.15 cm across turned 11.5° from the mirror axis under a blue sky, its left

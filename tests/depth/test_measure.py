@@ -2521,3 +2521,35 @@ def test_the_first_fit_of_a_rectangular_mask_lies_on_its_boundary(width, height,
     expected = np.array([[x0 + 3.5, y0 + 3.5], [x0 + width + 3.5, y0 + 3.5],
                          [x0 + width + 3.5, y0 + height + 3.5], [x0 + 3.5, y0 + height + 3.5]])
     np.testing.assert_allclose(corners, expected, atol=0.1)
+
+
+@pytest.mark.parametrize("follower", [2, 3])
+def test_a_side_that_follows_takes_the_slope_of_the_opposite_sides_new_fit(follower):
+    """`_refine` with `follower`: a face 9 px wide (u 14.8 … 23.8, v 19.9 … 72.1 in pixel-centre
+    coordinates, edges level), its noisy image drawn here, measured from a first model whose following
+    side leans by a slope of 0.3 (2.7 px across the face, beyond the profiles' reach at its ends) and
+    the opposite side the other way by 0.08. The side that follows is given the slope the opposite side
+    is fitted with in the same pass (level, from that side's own edge points), not the one either came
+    in with, and its edge points put it at its edge: both its corners within 0.15 px of it."""
+    from depth.measure import _corners, _refine
+
+    s = 8
+    h, w = 92, 40
+    v, u = (np.mgrid[0:h * s, 0:w * s] + 0.5) / s - 0.5  # pixel k covers [k − 0.5, k + 0.5)
+    face = (u >= 14.8) & (u < 23.8) & (v >= 19.9) & (v < 72.1)
+    hi = np.where(face[..., None], srgb_to_linear(np.array([0.72, 0.62, 0.12])),
+                  srgb_to_linear(np.array([0.86, 0.87, 0.9])))
+    linear = hi.reshape(h, s, w, s, 3).mean(axis=(1, 3))
+    linear = np.clip(linear + np.random.default_rng(0).normal(0.0, 0.004, linear.shape), 0.0, 1.0)
+    lines = np.array([[0.0, 14.8], [0.0, 23.8]])  # u = a·v + b
+    k = follower - 2
+    tilts = (0.3, -0.08) if k == 0 else (-0.08, 0.3)
+    quads = np.array([[0.0, t, edge - t * 19.3] for t, edge in zip(tilts, (19.9, 72.1))])  # through the true middles
+    model = (lines, quads, _corners(lines, quads))
+    out = _refine(linear, model, 1.5, 2.0, 0.02, 5, 1.0, follower=follower)
+    assert not isinstance(out, FailedMeasurement), out
+    new_quads, corners = out[1], out[2]
+    assert new_quads[k][0] == 0.0
+    assert new_quads[k][1] == pytest.approx(2.0 * new_quads[1 - k][0] * 19.3 + new_quads[1 - k][1], abs=0.02)
+    edge = (19.9, 72.1)[k]
+    np.testing.assert_allclose(corners[[0, 1] if k == 0 else [2, 3], 1], edge, atol=0.15)
