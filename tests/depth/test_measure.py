@@ -2451,12 +2451,14 @@ def test_a_face_shading_in_a_ramp_is_one_level(rise, angle, noise, seed):
 @given(step=st.floats(0.035, 0.3), sign=st.sampled_from([-1.0, 1.0]), rows=st.integers(14, 30),
        noise=st.floats(0.0, 0.004), seed=st.integers(0, 2**16))
 @example(step=0.03515625, sign=-1.0, rows=14, noise=0.004, seed=4301)
+@example(step=0.25, sign=1.0, rows=14, noise=0.00013088267902988896, seed=0)
 def test_a_flat_region_of_two_levels_is_cut_to_the_larger_one(step, sign, rows, noise, seed):
     """`_one_level` on a flat region that holds two faces, `rows` rows (14–30, over `LEVEL_SPLIT_MIN_PX`) of
     one level above 60 of another over the weakest face contrast (0.03) away, with noise up to 1 level of 255: it keeps the larger
     face, but for at most a row of its edge where the two meet. The example: a pixel of the larger face that
     the noise carried 4.4 σ toward the other level was cut out of it as a hole (CI on a fresh clone, sixty-
-    second session; 35 of 2000 seeds at that step and noise)."""
+    second session; 35 of 2000 seeds at that step and noise). The second: levels 0.25 apart, each spread by
+    0.00013, which skimage's 256-bin Otsu split inside the lower one (CI on a fresh clone, sixty-third)."""
     from depth.measure import _one_level
 
     h, w = 60 + rows, 40
@@ -2553,3 +2555,19 @@ def test_a_side_that_follows_takes_the_slope_of_the_opposite_sides_new_fit(follo
     assert new_quads[k][1] == pytest.approx(2.0 * new_quads[1 - k][0] * 19.3 + new_quads[1 - k][1], abs=0.02)
     edge = (19.9, 72.1)[k]
     np.testing.assert_allclose(corners[[0, 1] if k == 0 else [2, 3], 1], edge, atol=0.15)
+
+
+@given(low=st.floats(0.0, 0.5), gap=st.floats(0.01, 0.5), spread=st.floats(0.0, 0.002),
+       sizes=st.tuples(st.integers(2, 300), st.integers(2, 300)), seed=st.integers(0, 2**16))
+def test_otsus_threshold_of_two_separate_levels_lies_between_them(low, gap, spread, sizes, seed):
+    """`_otsu_threshold` on two levels of 2–300 values, each spread uniformly by up to 0.002 (down to none
+    at all) and `gap` (0.01 or more: 5 spreads) apart: the threshold lies in the gap, however narrow a
+    level is (a 256-bin histogram's cannot tell a level narrower than a bin). (Otsu's criterion itself
+    splits a level of 300 spread by a gap's half before a level of 2 beyond that gap.)"""
+    from depth.measure import _otsu_threshold
+
+    rng = np.random.default_rng(seed)
+    a = low + spread * rng.uniform(0.0, 1.0, sizes[0])
+    b = low + spread + gap + spread * rng.uniform(0.0, 1.0, sizes[1])
+    t = _otsu_threshold(rng.permutation(np.r_[a, b]))
+    assert a.max() < t < b.min()
