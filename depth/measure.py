@@ -2165,14 +2165,6 @@ def _tb_degree(q: np.ndarray) -> int:
     return 2 if len(q) >= 7 and np.ptp(q[:, 0]) >= _TB_CURVE_SPAN_PX else 1
 
 
-def _tb_residuals(coef: np.ndarray, q: np.ndarray, sign: np.ndarray):
-    """A top or bottom side's fit v(u) = `coef` (quadratic, highest first): the residuals of its edge
-    points q across it, and its unit normals there, oriented by `sign` ((N, 1) ±1 on v)."""
-    slope = 2 * coef[0] * q[:, 0] + coef[1]
-    res = (q[:, 1] - np.polyval(coef, q[:, 0])) / np.hypot(1.0, slope)
-    return res, sign * np.stack([-slope, np.ones_like(slope)], axis=1) / np.hypot(1.0, slope)[:, None]
-
-
 def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing, encoded=None, two_point_sides=True,
             fixed=None, follower=None):
     """The model's sides measured again (all but those `fixed` marks, whose fits, points and figures stay).
@@ -2192,16 +2184,12 @@ def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing, en
         height = (np.linalg.norm(c[3] - c[0]) + np.linalg.norm(c[2] - c[1])) / 2.0
         reach = float(np.clip(0.5 * height, half_width, JPEG_CHROMA_REACH_PX))
         colour_reach = [None, None, reach, reach]
-    new_lines, new_quads, sides, normals, rms, contrast, residuals = [], [], [], [], [], [], []
-    tb = []  # (i, name, min points, edge points, their normals' sign, contrast) of the top and bottom sides
-    for i, (p, n) in enumerate(zip(pts, nrm)):
+    out = {}  # per side: (fit, edge points, normals, residuals, rms, contrast)
+    for i in ([0, 1, 3, 2] if follower == 2 else [0, 1, 2, 3]):  # a follower after the side it follows
+        p, n = pts[i], nrm[i]
         if fixed is not None and fixed[i]:
-            (new_lines if i < 2 else new_quads).append(model[0][i] if i < 2 else model[1][i - 2])
-            sides.append(model[3][i])
-            normals.append(model[4][i])
-            rms.append(float(model[5][i]))
-            contrast.append(float(model[6][i]))
-            residuals.append(model[7][i])
+            out[i] = (model[0][i] if i < 2 else model[1][i - 2], model[3][i], model[4][i], model[7][i],
+                      float(model[5][i]), float(model[6][i]))
             continue
         name = SIDE_NAMES[i]
         min_points = min_lr if i < 2 else min(min_lr, _MIN_TB_POINTS)
@@ -2242,49 +2230,30 @@ def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing, en
                 failed_side=i,
             )
         q = p[good] + e[good, None] * n[good]
-        if i >= 2 and follower is not None and fixed is None:  # fitted once both are measured
-            tb.append((i, name, min_points, q, np.sign(n[good, 1:2]), float(np.median(c[good]))))
-            continue
         if i < 2:
             coef, keep = _robust_polyfit(q[:, 1], q[:, 0], 1)
             slope = np.full(len(q), coef[0])
             res = (q[:, 0] - np.polyval(coef, q[:, 1])) / np.hypot(1.0, slope)
-            new_lines.append(coef)
             nn = np.sign(n[good, 0:1]) * np.stack([np.ones_like(slope), -slope], axis=1) / np.hypot(1.0, slope)[:, None]
         else:
-            coef, keep = _robust_polyfit(q[:, 0], q[:, 1], _tb_degree(q))
-            coef = np.r_[np.zeros(3 - len(coef)), coef]
-            res, nn = _tb_residuals(coef, q, np.sign(n[good, 1:2]))
-            new_quads.append(coef)
+            if i == follower:
+                qa, qb, _ = out[5 - i][0]  # the opposite side's fit
+                tilt = 2.0 * qa * float(np.mean(q[:, 0])) + qb
+                (offset,), keep = _robust_polyfit(q[:, 0], q[:, 1] - tilt * q[:, 0], 0)
+                coef = np.array([0.0, tilt, offset])
+            else:
+                coef, keep = _robust_polyfit(q[:, 0], q[:, 1], _tb_degree(q))
+                coef = np.r_[np.zeros(3 - len(coef)), coef]
+            slope = 2 * coef[0] * q[:, 0] + coef[1]
+            res = (q[:, 1] - np.polyval(coef, q[:, 0])) / np.hypot(1.0, slope)
+            nn = np.sign(n[good, 1:2]) * np.stack([-slope, np.ones_like(slope)], axis=1) / np.hypot(1.0, slope)[:, None]
         if keep.sum() < min_points:
             return FailedMeasurement(f"{name} side: only {int(keep.sum())} consistent edge points",
                                      weak_side=i if i < 2 else None, failed_side=i)
-        sides.append(q[keep])
-        normals.append(nn[keep])
-        residuals.append(res[keep])
-        rms.append(float(np.sqrt(np.mean(res[keep] ** 2))))
-        contrast.append(float(np.median(c[good])))
-    if tb:
-        fits = {}
-        for i, _, _, q, _, _ in sorted(tb, key=lambda side: side[0] == follower):  # the follower last
-            if i == follower:
-                qa, qb, _ = fits[5 - i][0]  # the opposite side's fit
-                tilt = 2.0 * qa * float(np.mean(q[:, 0])) + qb
-                (offset,), keep = _robust_polyfit(q[:, 0], q[:, 1] - tilt * q[:, 0], 0)
-                fits[i] = (np.array([0.0, tilt, offset]), keep)
-            else:
-                coef, keep = _robust_polyfit(q[:, 0], q[:, 1], _tb_degree(q))
-                fits[i] = (np.r_[np.zeros(3 - len(coef)), coef], keep)
-        for (i, name, min_points, q, sgn, median_contrast), (coef, keep) in ((side, fits[side[0]]) for side in tb):
-            res, nn = _tb_residuals(coef, q, sgn)
-            new_quads.append(coef)
-            if keep.sum() < min_points:
-                return FailedMeasurement(f"{name} side: only {int(keep.sum())} consistent edge points", failed_side=i)
-            sides.append(q[keep])
-            normals.append(nn[keep])
-            residuals.append(res[keep])
-            rms.append(float(np.sqrt(np.mean(res[keep] ** 2))))
-            contrast.append(median_contrast)
+        out[i] = (coef, q[keep], nn[keep], res[keep], float(np.sqrt(np.mean(res[keep] ** 2))),
+                  float(np.median(c[good])))
+    new_lines, new_quads, sides, normals, residuals, rms, contrast = (
+        [out[i][0] for i in (0, 1)], [out[i][0] for i in (2, 3)], *([out[i][k] for i in range(4)] for k in range(1, 6)))
     lines_arr, quads_arr = np.array(new_lines), np.array(new_quads)
     corners = _corners(lines_arr, quads_arr)
     if isinstance(corners, FailedMeasurement):
