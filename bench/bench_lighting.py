@@ -126,11 +126,12 @@ def match(cubes, truth: list) -> tuple[list, list]:
 
 def score(light: str, grey: bool = False) -> dict:
     """Reconstruct every scene under `light` (its cubes `greyed` when `grey`; lights "floor" and
-    "floor2": the `floor_render` scenes under the suns of draw 0 and 1); per-cube errors and σ ratios."""
+    "floor2": the `floor_render` scenes under the suns of draw 0 and 1); per-cube errors and σ ratios,
+    and the cubes invented, as (scene index, cube)."""
     from bench.scenes import make_scenes
     from depth.reconstruct import reconstruct
     from raytrace.truth import cube_truth
-    centre, size, zs, found, total, fp, domains = [], [], [], 0, 0, 0, []
+    centre, size, zs, found, total, fp, domains, invented = [], [], [], 0, 0, 0, [], []
     floor = light.startswith("floor")
     scenes = make_scenes(FLOOR_N, FLOOR_SEED) if floor else make_scenes(N, SEED)
     for index, sc in enumerate(scenes):
@@ -142,6 +143,7 @@ def score(light: str, grey: bool = False) -> dict:
         truth = [cube_truth(cam, mir, c.build()) for c in sc.setup.objects]
         pairs, extra = match(rec.cubes, truth)
         fp += len(extra)
+        invented += [(index, cube) for cube in extra]
         for cube, j in pairs:
             t, obj = truth[j], sc.setup.objects[j]
             c = np.asarray(t["center"])
@@ -152,7 +154,8 @@ def score(light: str, grey: bool = False) -> dict:
         found += len(pairs)
         total += len(truth)
     return {"found": found, "total": total, "fp": fp, "centre": np.array(centre), "size": np.array(size),
-            "z": np.array(zs), "encoded": domains.count("encoded"), "linear": domains.count("linear")}
+            "z": np.array(zs), "encoded": domains.count("encoded"), "linear": domains.count("linear"),
+            "invented": invented}
 
 
 def main() -> int:
@@ -177,4 +180,9 @@ def main() -> int:
               f"{np.percentile(c, 90):5.1f}% {c.max():5.1f}% | {np.median(sz):7.2f}% | "
               f"{np.mean(z <= 1) * 100:3.0f} / {np.mean(z <= 2) * 100:3.0f} % | {r['encoded']} / {r['linear']}",
               flush=True)
+        for index, cube in r["invented"]:
+            u, v = np.mean(cube.corners_px, axis=0)
+            print(f"    invented in scene {index} at ({u:.0f}, {v:.0f}) px: a cube {cube.estimate.size * 1e3:.1f} mm "
+                  f"across, {cube.depth:.3f} ± {cube.depth_std:.3f} m from the axis, edge misfit "
+                  f"{cube.estimate.rms_residual:.2f} px", flush=True)
     return 0

@@ -7,7 +7,7 @@ of a strength drawn from `default_rng(SEED + 7)`; the odd scenes' cubes painted 
 JPEG coder at quality 90 (the reconstruct bench's JPEG variant) and reconstructed as compressed: JPEG
 images no JPEG change was tuned on. `exact` on each; per cube the centre error
 ‖ĉ − c‖ / (distance of c to the axis) in %, the depth error in reported σ, the turn and the edge
-misfit, the refusals, then recall, false positives and the error median / 90th percentile / max.
+misfit, the refusals, each cube invented (where, its size, depth ± σ and edge misfit), then recall, false positives and the error median / 90th percentile / max.
 Not part of `make bench` (the first run renders for about 5 min on 2 cores; renders are cached in
 bench/out/renders/, and the results written to bench/out/holdout-SEED[-grey][-jpeg].json).
 """
@@ -53,7 +53,10 @@ def main(argv=None) -> int:
         rec = reconstruct(img, cam, mir, compressed=jpeg)
         truth = [cube_truth(cam, mir, c.build()) for c in setup.objects]
         pairs, extra = match(rec.cubes, truth)
-        fps += [{"scene": i, "at_px": np.round(np.mean(cube.corners_px, axis=0), 1).tolist()} for cube in extra]
+        fps += [{"scene": i, "at_px": np.round(np.mean(cube.corners_px, axis=0), 1).tolist(),
+                 "size_mm": round(cube.estimate.size * 1e3, 2), "depth_m": round(cube.depth, 4),
+                 "depth_std_m": round(cube.depth_std, 4), "misfit_px": round(float(cube.estimate.rms_residual), 3)}
+                for cube in extra]
         for cube, j in pairs:
             c = np.asarray(truth[j]["center"])
             depth = float(mir.distance_to_axis(c[None])[0])
@@ -69,6 +72,9 @@ def main(argv=None) -> int:
         print(f"  s{i} {'grey ' if grey else 'colour'} " + ", ".join(cells), flush=True)
         for r in rec.refused:
             print(f"      refused {r.bbox}: {r.reason}")
+        for fp in fps[len(fps) - len(extra):]:
+            print(f"      invented at ({fp['at_px'][0]:.0f}, {fp['at_px'][1]:.0f}) px: a cube {fp['size_mm']:.1f} mm across, "
+                  f"{fp['depth_m']:.3f} ± {fp['depth_std_m']:.3f} m from the axis, edge misfit {fp['misfit_px']:.2f} px")
     e = np.array([v["centre_err_pct"] for v in res.values() if v])
     z = np.abs([v["depth_sigmas"] for v in res.values() if v])
     print(f"holdout {seed}{' (all grey)' if all_grey else ''}{' (JPEG)' if jpeg else ''}: found {len(e)} of {len(res)}, {len(fps)} false "
