@@ -124,6 +124,14 @@ def match(cubes, truth: list) -> tuple[list, list]:
     return pairs, extra
 
 
+def invented_line(cube) -> str:
+    """One line describing a cube found where there is none: where its front face lies in the image, its
+    size, its depth ± σ and its edge misfit."""
+    u, v = np.mean(cube.corners_px, axis=0)
+    return (f"invented at ({u:.0f}, {v:.0f}) px: a cube {cube.estimate.size * 1e3:.1f} mm across, "
+            f"{cube.depth:.3f} ± {cube.depth_std:.3f} m from the axis, edge misfit {cube.estimate.rms_residual:.2f} px")
+
+
 def score(light: str, grey: bool = False) -> dict:
     """Reconstruct every scene under `light` (its cubes `greyed` when `grey`; lights "floor" and
     "floor2": the `floor_render` scenes under the suns of draw 0 and 1); per-cube errors and σ ratios,
@@ -181,8 +189,5 @@ def main() -> int:
               f"{np.mean(z <= 1) * 100:3.0f} / {np.mean(z <= 2) * 100:3.0f} % | {r['encoded']} / {r['linear']}",
               flush=True)
         for index, cube in r["invented"]:
-            u, v = np.mean(cube.corners_px, axis=0)
-            print(f"    invented in scene {index} at ({u:.0f}, {v:.0f}) px: a cube {cube.estimate.size * 1e3:.1f} mm "
-                  f"across, {cube.depth:.3f} ± {cube.depth_std:.3f} m from the axis, edge misfit "
-                  f"{cube.estimate.rms_residual:.2f} px", flush=True)
+            print(f"    scene {index}: {invented_line(cube)}", flush=True)
     return 0

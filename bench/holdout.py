@@ -7,7 +7,8 @@ of a strength drawn from `default_rng(SEED + 7)`; the odd scenes' cubes painted 
 JPEG coder at quality 90 (the reconstruct bench's JPEG variant) and reconstructed as compressed: JPEG
 images no JPEG change was tuned on. `exact` on each; per cube the centre error
 ‖ĉ − c‖ / (distance of c to the axis) in %, the depth error in reported σ, the turn and the edge
-misfit, the refusals, each cube invented (where, its size, depth ± σ and edge misfit), then recall, false positives and the error median / 90th percentile / max.
+misfit, the refusals, each cube invented (`bench_lighting.invented_line`), then recall, false positives
+and the error median / 90th percentile / max.
 Not part of `make bench` (the first run renders for about 5 min on 2 cores; renders are cached in
 bench/out/renders/, and the results written to bench/out/holdout-SEED[-grey][-jpeg].json).
 """
@@ -22,7 +23,7 @@ import numpy as np
 
 def main(argv=None) -> int:
     from bench import mitsuba_scenes as ms
-    from bench.bench_lighting import greyed, match, mitsuba_cached, sky_map
+    from bench.bench_lighting import greyed, invented_line, match, mitsuba_cached, sky_map
     from bench.bench_reconstruct import OUT, variant
     from bench.scenes import make_scenes
     from depth.reconstruct import reconstruct
@@ -72,9 +73,8 @@ def main(argv=None) -> int:
         print(f"  s{i} {'grey ' if grey else 'colour'} " + ", ".join(cells), flush=True)
         for r in rec.refused:
             print(f"      refused {r.bbox}: {r.reason}")
-        for fp in fps[len(fps) - len(extra):]:
-            print(f"      invented at ({fp['at_px'][0]:.0f}, {fp['at_px'][1]:.0f}) px: a cube {fp['size_mm']:.1f} mm across, "
-                  f"{fp['depth_m']:.3f} ± {fp['depth_std_m']:.3f} m from the axis, edge misfit {fp['misfit_px']:.2f} px")
+        for cube in extra:
+            print(f"      {invented_line(cube)}")
     e = np.array([v["centre_err_pct"] for v in res.values() if v])
     z = np.abs([v["depth_sigmas"] for v in res.values() if v])
     print(f"holdout {seed}{' (all grey)' if all_grey else ''}{' (JPEG)' if jpeg else ''}: found {len(e)} of {len(res)}, {len(fps)} false "
