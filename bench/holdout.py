@@ -23,7 +23,13 @@ import numpy as np
 
 def main(argv=None) -> int:
     from bench import mitsuba_scenes as ms
-    from bench.bench_lighting import greyed, invented_line, match, mitsuba_cached, sky_map
+    from bench.bench_lighting import (
+        greyed,
+        invented_line,
+        match,
+        mitsuba_cached,
+        sky_map,
+    )
     from bench.bench_reconstruct import OUT, variant
     from bench.scenes import make_scenes
     from depth.reconstruct import reconstruct
