@@ -148,11 +148,12 @@ def _measurement(img, blob_mask, outline, face_px, channels, compressed):
     sil = silhouette(img, blob_mask, outline, channels=channels)
     no_gap = NO_SIDE_FACE_GAP_PX if compressed or outline.blurred else NO_SIDE_FACE_GAP_PX_SHARP
     backs, gaps = list(sil.sides), list(sil.gaps_px)
-    # A side face the blob left out (`FaceOutline.faint_side_px`): its outer edge is the back vertical edge
-    # the silhouette would have shown, where the silhouette shows no face beside either side (a cube shows
-    # at most one of its left and right faces). The edge runs parallel to the side's points, that far out.
-    if not any(backs[k] is not None or gaps[k] > no_gap for k in (0, 1)):
-        for k in np.flatnonzero(outline.faint_side_px > 0.0):
+    # A faint side face (`FaceOutline.faint_side_px`), left out of the blob or in it with an outer edge too
+    # faint for the silhouette's points: its outer edge is the back vertical edge the silhouette would have
+    # shown, where the silhouette shows no face beside the other side (a cube shows at most one of its left
+    # and right faces). The edge runs parallel to the side's points, that far out.
+    for k in np.flatnonzero(outline.faint_side_px > 0.0):
+        if sil.sides[k] is None and sil.sides[1 - k] is None and not sil.gaps_px[1 - k] > no_gap:
             backs[k] = outline.sides[k] + outline.faint_side_px[k] * outline.normals[k]
             gaps[k] = float(outline.faint_side_px[k])
     return FaceMeasurement(tuple(outline.sides), outline.corners_px, face_px, outline.edge_noise_px,
