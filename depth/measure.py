@@ -555,17 +555,18 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
     # The 3 px band of each edge beside an enclosed region: a pixel there is the region's where its
     # colour leaves the nearest background pixel's (3 × 3 mean) by more than the background's noise
     # band (as `_uniform_background`'s), so that a region ends where its colour does, not 1–2 px
-    # beyond it in the background. A strip of the background too thin to hold a 3 × 3 block lies
-    # between edges, in their band: its pixels are tested so too, and are no background pixel to
-    # compare with. Beyond 3 px, up to `_band_reach(close_px)`, such a strip that leaves the background's
-    # colour and joins a region through pixels that do is a region of its own, with its 3 px band (an
-    # edge's band is not: pixels mixing sky and floor along a horizon ran on from a cube). A side face a few pixels wide lies
-    # in its edges' band all across, its middle a strip 1–2 px wide; where it runs into a floor of its
-    # brightness, the floor floods that strip, and the side face was background up to 3 px from the
-    # front face's free pixels (`_achromatic_regions` found the front face alone, whose silhouette
-    # showed no side face: holdout 4040 s1/4, a side face 4.5 px wide, read turned the wrong way, 145 %
-    # off).
-    thin = near & ~cv2.morphologyEx((near | ~search).view(np.uint8), cv2.MORPH_OPEN, np.ones((5, 5), np.uint8)).view(bool)
+    # beyond it in the background. A strip of the background too thin to hold a 5 × 5 block (the least
+    # region `_achromatic_regions` takes for an object) lies between edges, in their band: its pixels are
+    # tested so too, and are no background pixel to compare with. Beyond 3 px, up to
+    # `_band_reach(close_px)`, such a strip that leaves the background's colour and joins a region through
+    # pixels that do is a region of its own, with its 3 px band (an edge's band is not: pixels mixing sky
+    # and floor along a horizon ran on from a cube). A side face a few pixels wide lies in its edges' band
+    # but for a strip 1–4 px wide in its middle; where it runs into a floor of its brightness, the floor
+    # flooded that strip, and the side face was background 3 px beyond the front face's free pixels
+    # (`_achromatic_regions` found the front face alone, whose silhouette showed no side face: holdout 4040
+    # s1/4, a side face 4.5 px wide, read turned the wrong way, 145 % off).
+    block = np.ones((5, 5), np.uint8)
+    thin = near & ~cv2.morphologyEx((near | ~search).view(np.uint8), cv2.MORPH_OPEN, block).view(bool)
     band = (search & ~free) | thin
     inside = free & ~near
     background = near & ~thin
@@ -3030,7 +3031,10 @@ def silhouette(
     lit, and the back edge tells how far the cube is turned. `channels` as in `face_outline`. A side
     whose points scatter about their fitted line by more than `max_scatter_px` (robust σ) is not an
     edge but noise or compression artefacts along the blob's border, and is dropped (its gap is
-    still reported: it says a side face shows). A gap of about 0 says no distinct side face shows:
+    still reported: it says a side face shows), unless its points more than `min_gap_px` out, at least
+    `min_points` of them, lie on a line alone: a side face showing over some rows and running into a
+    background of its brightness over the others (where the blob ends at the front face) has its back
+    edge there, and those points and their gap are the side's. A gap of about 0 says no distinct side face shows:
     none is seen, or one lit like the front face merges with it (`depth.estimate` fits such a side
     as the cube's outer contour). In a JPEG image (`channels` "luma"), where the blob's colour is
     smeared beyond the cube, the boundary is read on luma only (`_luma_boundary`).
