@@ -3031,10 +3031,11 @@ def silhouette(
     lit, and the back edge tells how far the cube is turned. `channels` as in `face_outline`. A side
     whose points scatter about their fitted line by more than `max_scatter_px` (robust σ) is not an
     edge but noise or compression artefacts along the blob's border, and is dropped (its gap is
-    still reported: it says a side face shows), unless its points more than `min_gap_px` out, at least
-    `min_points` of them, lie on a line alone: a side face showing over some rows and running into a
-    background of its brightness over the others (where the blob ends at the front face) has its back
-    edge there, and those points and their gap are the side's. A gap of about 0 says no distinct side face shows:
+    still reported: it says a side face shows), unless its points more than `min_gap_px` out lie in one
+    run of rows (at least `min_points` of them and `FAR_RUN_SHARE` of all such points) and on a line: a
+    side face showing over some rows and running into a background of its brightness over the others
+    (where the blob ends at the front face) has its back edge there, and that run's points and gap are
+    the side's. A gap of about 0 says no distinct side face shows:
     none is seen, or one lit like the front face merges with it (`depth.estimate` fits such a side
     as the cube's outer contour). In a JPEG image (`channels` "luma"), where the blob's colour is
     smeared beyond the cube, the boundary is read on luma only (`_luma_boundary`).
@@ -3059,9 +3060,10 @@ def silhouette(
         a, b = outline.lines[side]
         gap = sign * (pts[:, 0] - (a * pts[:, 1] + b))
         scatter = _line_scatter(pts)
-        run = _longest_run(gap > min_gap_px)  # (`_blob_boundary`'s points come row by row, top down)
-        if scatter > max_scatter_px and run.stop - run.start >= max(min_points, FAR_RUN_SHARE * np.sum(gap > min_gap_px)) \
-                and _line_scatter(pts[run]) <= max_scatter_px:
+        far = gap > min_gap_px
+        run = _longest_run(far)  # (`_blob_boundary`'s points come row by row, top down)
+        if (scatter > max_scatter_px and run.stop - run.start >= max(min_points, FAR_RUN_SHARE * far.sum())
+                and _line_scatter(pts[run]) <= max_scatter_px):
             # a side face that shows over some rows only, running into a background of its brightness over
             # the others (a dark side face below the horizon, on a floor as dark), where the blob ends at the
             # front face: its rows beyond it, one run of them, are the back edge
