@@ -576,7 +576,10 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
         sample = np.flatnonzero(background)[:: max(int(background.sum()) // 100_000, 1)]
         level = _pixel_noise_band(rgb, sample)
         dist = cv2.distanceTransform((~inside).view(np.uint8), cv2.DIST_L2, 5)
-        band &= dist <= _band_reach(close_px)
+        # beyond 3 px only a thin strip makes a pixel the region's: where none lies within reach, the colour
+        # test stays within the 3 px (its answer farther out would be thrown away below)
+        far_thin = thin & (dist > 3.0) & (dist <= _band_reach(close_px))
+        band &= dist <= (_band_reach(close_px) if far_thin.any() else 3.0)
         off = np.zeros_like(band)
         off[band] = np.abs(rgb[band] - _mean3x3(rgb, _nearest(background, band))).max(axis=1) > level
         strips = off & thin & (dist > 3.0)
