@@ -25,6 +25,17 @@ def _crop_setup(path, crop_size, focal, principal, position, radius, height):
     return image, camera, CylinderMirror(radius, height, (0, 0, 0), (0, 1, 0))
 
 
+def _crop_cube(path, crop_size, focal, principal, position, radius, height, compressed=False):
+    """The one cube `reconstruct` finds in a crop of a held-out render (`_crop_setup`), and the crop's mirror:
+    the whole pipeline, in this process."""
+    from depth.reconstruct import reconstruct
+
+    image, camera, mirror = _crop_setup(path, crop_size, focal, principal, position, radius, height)
+    rec = reconstruct(image, camera, mirror, compressed=compressed, workers=1)
+    assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
+    return rec.cubes[0], mirror
+
+
 def centre_error(rig, est, cube):
     return np.linalg.norm(est.center - cube.center) / rig.depth(cube)
 
@@ -1068,13 +1079,8 @@ def test_the_depth_sigma_of_a_merged_turned_face_covers_the_turns_that_fit_as_we
     where the trust region starts tiny, left the turn that fits twice as well unplaced: the depth was
     reported at ±1.5 %, 21 σ off. The σ must cover the depth (within 3 σ) and stay a bound worth having
     (under half the depth). The camera is the render's, its principal point moved to the crop's."""
-    from depth.reconstruct import reconstruct
-
-    image, camera, mirror = _crop_setup(MITSUBA_DARK_TURNED, (94, 177), 4202.017, (1023.5 - 909, 767.5 - 559),
-                                        (0.0, -0.01612, 0.57268), 0.0849, 0.48976)
-    rec = reconstruct(image, camera, mirror, workers=1)
-    assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
-    (found,) = rec.cubes
+    found, mirror = _crop_cube(MITSUBA_DARK_TURNED, (94, 177), 4202.017, (1023.5 - 909, 767.5 - 559),
+                               (0.0, -0.01612, 0.57268), 0.0849, 0.48976)
     depth = float(mirror.distance_to_axis(np.array([[-0.12547, 0.04315, 0.64047]]))[0])
     assert abs(found.depth - depth) < 3.0 * found.depth_std
     assert found.depth_std < 0.5 * depth
@@ -1224,12 +1230,7 @@ def test_a_light_grey_cube_whose_side_against_the_sky_is_faint_is_reconstructed_
     """The whole pipeline on the crop, the camera the render's with its principal point moved to the
     crop's: the cube, missed before its faint side was traced, is found, and its depth lies within 3 σ
     (its 3 px side face merged with the front face leaves the turn loose: 34 % off at ±25 %)."""
-    from depth.reconstruct import reconstruct
-
-    image, camera, mirror = _crop_setup(MITSUBA_GREY_HORIZON, (89, 155), 4019.265, (799.5 - 597, 599.5 - 725), (0.0, -0.00784, 0.81501), 0.11706, 0.54213)
-    rec = reconstruct(image, camera, mirror, workers=1)
-    assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
-    (found,) = rec.cubes
+    found, mirror = _crop_cube(MITSUBA_GREY_HORIZON, (89, 155), 4019.265, (799.5 - 597, 599.5 - 725), (0.0, -0.00784, 0.81501), 0.11706, 0.54213)
     assert np.allclose(np.mean(found.corners_px, axis=0), [44.7, 77.7], atol=3.0)
     depth = float(mirror.distance_to_axis(np.array([[-0.44462, -0.07036, 0.84367]]))[0])
     assert abs(found.depth - depth) < 3.0 * found.depth_std
@@ -1247,13 +1248,8 @@ def test_a_narrow_face_under_a_thin_top_face_is_reconstructed_within_its_sigma()
     until its profiles lost the edge, and the cube was refused ("top side: 1 edge points with contrast");
     its top side following the slope of its bottom side's fit, the face is outlined and the cube found
     where it is, its depth and size within 2 σ."""
-    from depth.reconstruct import reconstruct
-
-    image, camera, mirror = _crop_setup(MITSUBA_YELLOW_TOP_STRIP, (64, 96), 1610.314, (639.5 - 797, 479.5 - 530),
-                                        (0.0, -0.00434, 0.37382), 0.08513, 0.45909)
-    rec = reconstruct(image, camera, mirror, workers=1)
-    assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
-    (found,) = rec.cubes
+    found, mirror = _crop_cube(MITSUBA_YELLOW_TOP_STRIP, (64, 96), 1610.314, (639.5 - 797, 479.5 - 530),
+                               (0.0, -0.00434, 0.37382), 0.08513, 0.45909)
     assert np.allclose(np.mean(found.corners_px, axis=0), [32.3, 47.7], atol=1.0)  # the truth's, in the crop
     depth = float(mirror.distance_to_axis(np.array([[0.60255, -0.05216, 0.47486]]))[0])
     assert abs(found.depth - depth) < 2.0 * found.depth_std
@@ -1273,13 +1269,8 @@ def test_a_grey_cube_whose_narrow_side_face_runs_into_the_floor_is_reconstructed
     from the axis instead of 0.55 m (145 % off, at +2.2 σ). The side face is in the blob, its outer edge read
     as the cube's back vertical edge, and the cube comes out within 4 % of its centre and within 2 σ of its
     depth and size, turned within 5° of its true turn."""
-    from depth.reconstruct import reconstruct
-
-    image, camera, mirror = _crop_setup(MITSUBA_GREY_FLOOR_SIDE, (80, 152), 2995.164, (799.5 - 488, 599.5 - 728),
-                                        (0.0, -0.02259, 0.44299), 0.078, 0.45765)
-    rec = reconstruct(image, camera, mirror, workers=1)
-    assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
-    (found,) = rec.cubes
+    found, mirror = _crop_cube(MITSUBA_GREY_FLOOR_SIDE, (80, 152), 2995.164, (799.5 - 488, 599.5 - 728),
+                               (0.0, -0.02259, 0.44299), 0.078, 0.45765)
     assert np.allclose(np.mean(found.corners_px, axis=0), [37.9, 76.6], atol=1.0)  # the truth's, in the crop
     centre = np.array([-0.43667, -0.03728, 0.33965])
     depth = float(mirror.distance_to_axis(centre[None])[0])
@@ -1303,12 +1294,7 @@ def test_a_grey_cube_whose_side_face_is_lit_like_the_sky_is_reconstructed_within
     Read with no face beside its left side, `exact` turned the cube to hide one and then tilted it 10°:
     13.8 % off at +5.1 σ. The side face is read beyond the left side, and the cube comes out upright
     within 2 % of its centre and within 2 σ of its depth."""
-    from depth.reconstruct import reconstruct
-
-    image, camera, mirror = _crop_setup(MITSUBA_GREY_SKY_SIDE, (96, 168), 2454.543, (639.5 - 696, 479.5 - 764), (0.0, -0.02229, 0.94329), 0.1354, 0.69512)
-    rec = reconstruct(image, camera, mirror, workers=1)
-    assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
-    (found,) = rec.cubes
+    found, mirror = _crop_cube(MITSUBA_GREY_SKY_SIDE, (96, 168), 2454.543, (639.5 - 696, 479.5 - 764), (0.0, -0.02229, 0.94329), 0.1354, 0.69512)
     centre = np.array([0.19693, -0.16089, 0.40524])
     depth = float(mirror.distance_to_axis(centre[None])[0])
     assert np.linalg.norm(found.estimate.center - centre) < 0.02 * depth
@@ -1331,13 +1317,8 @@ def test_a_jpeg_grey_cube_with_a_merged_side_face_is_read_turned():
     40 % off at −14.6 σ (in 3 of 5 crops of the cube; in the others the starts' basin fell the other way,
     1.77 % off). The cube comes out turned as it is (within 3°), within 3 % of its centre and within 2 σ of
     its depth."""
-    from depth.reconstruct import reconstruct
-
-    image, camera, mirror = _crop_setup(MITSUBA_GREY_JPEG_TURNED, (96, 192), 2862.498, (799.5 - 736, 599.5 - 784),
-                                        (0.0, -2e-05, 0.40053), 0.08022, 0.39343)
-    rec = reconstruct(image, camera, mirror, compressed=True, workers=1)
-    assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
-    (found,) = rec.cubes
+    found, mirror = _crop_cube(MITSUBA_GREY_JPEG_TURNED, (96, 192), 2862.498, (799.5 - 736, 599.5 - 784),
+                               (0.0, -2e-05, 0.40053), 0.08022, 0.39343, compressed=True)
     centre = np.array([-0.03504, -0.08827, 0.67269])
     depth = float(mirror.distance_to_axis(centre[None])[0])
     assert np.linalg.norm(found.estimate.center - centre) < 0.03 * depth
@@ -1359,13 +1340,8 @@ def test_a_jpeg_black_cube_whose_top_face_step_is_smeared_is_read_without_its_to
     the top face: the face read as tall as both, its top side on the top face's far edge, fitted a cube
     8.96 cm across 3 cm too far, to 0.09 px, 9.5 % off at +17.7 σ (+32.7 σ in the whole image). The cube
     comes out within 1 % of its centre, within 2 σ of its depth and within 1 % of its size."""
-    from depth.reconstruct import reconstruct
-
-    image, camera, mirror = _crop_setup(MITSUBA_BLACK_JPEG_TOP, (224, 560), 4179.281, (1023.5 - 1304, 767.5 - 976),
-                                        (0.0, 0.01971, 0.63587), 0.11266, 0.66899)
-    rec = reconstruct(image, camera, mirror, compressed=True, workers=1)
-    assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
-    (found,) = rec.cubes
+    found, mirror = _crop_cube(MITSUBA_BLACK_JPEG_TOP, (224, 560), 4179.281, (1023.5 - 1304, 767.5 - 976),
+                               (0.0, 0.01971, 0.63587), 0.11266, 0.66899, compressed=True)
     centre = np.array([0.23276, -0.09017, 0.21879])
     depth = float(mirror.distance_to_axis(centre[None])[0])
     assert np.linalg.norm(found.estimate.center - centre) < 0.01 * depth
