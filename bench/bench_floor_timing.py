@@ -74,13 +74,14 @@ def _time(root: Path, scenes, repeats: int) -> dict:
     return {int(k): v for k, v in json.loads(done.stdout.strip().splitlines()[-1]).items()}
 
 
-def _worktree(rev: str, where: Path) -> Path:
-    """A detached worktree of `rev` under `where`, sharing this checkout's cached renders."""
+def _worktree(rev: str, where: Path, bench: str = "floor_timing") -> Path:
+    """A detached worktree of `rev` under `where`, sharing this checkout's cached renders (`bench` names the
+    bench in the error)."""
     path = where / "base"
     done = subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "-q", "--detach", str(path), rev],
                           capture_output=True, text=True, check=False)
     if done.returncode != 0:
-        raise SystemExit(f"bench floor_timing: --against={rev}: not a revision of this repository "
+        raise SystemExit(f"bench {bench}: --against={rev}: not a revision of this repository "
                          f"({done.stderr.strip().splitlines()[-1] if done.stderr.strip() else 'git failed'})")
     (path / "bench" / "out").mkdir(parents=True, exist_ok=True)
     (path / "bench" / "out" / "renders").symlink_to(ROOT / "bench" / "out" / "renders")
