@@ -160,6 +160,10 @@ class FaceOutline:
         strip, the alternative keeps the side at the one-step edge without it; read as mixed, it
         moves the side to the strip's inner edge. `depth.reconstruct` estimates it where no cube
         fits the first reading.
+    blur_domain : str
+        Where its blurred edges were placed: "encoded" where `face_outline` read them on the encoded
+        values (its `blur_domain` "encoded" and an edge ramp over `BLURRED_RAMP_PX`), else "linear".
+        `silhouette` reads the blob's boundary beside the face the same way.
     """
 
     sides: list[np.ndarray]
@@ -174,6 +178,7 @@ class FaceOutline:
     edge_width_px: float = float("nan")
     alternative: FaceOutline | None = None
     faint_side_px: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    blur_domain: str = "linear"
 
     def __bool__(self) -> bool:
         return True
@@ -1685,7 +1690,8 @@ def face_outline(
     before_strips = model
     if thin_strips:
         model, strip, ramp, others = with_strips(linear[..., :3], before_strips)
-    if ramp > BLURRED_RAMP_PX and blur_domain == "encoded":
+    domain = "encoded" if ramp > BLURRED_RAMP_PX and blur_domain == "encoded" else "linear"
+    if domain == "encoded":
         # blurred after encoding (as most software blurs): place the edges on the encoded values
         # (a profile half a pixel longer: the blur's tails must not reach its ends); where it finds
         # too few points (a neighbour within reach), the linear outline stands. The strips too are
@@ -1709,7 +1715,7 @@ def face_outline(
             if not (moved & ~fixed).any():
                 break
             fixed = fixed | moved
-    outline = _as_outline(model, origin, strip, ramp)
+    outline = _as_outline(model, origin, strip, ramp, domain)
     if faint_sides:
         # the look reads `_FAINT_FACE_OUT_PX` beyond a side and the outside past that, farther than `border`
         # reaches: in a window of its own (in the outline's, the rim's pixels stood for the outside there)
@@ -1739,7 +1745,7 @@ def face_outline(
         corners = _corners(lines, quads)
         if not isinstance(corners, FailedMeasurement):
             alt = (lines, quads, corners, sides, normals) + tuple(model[5:])
-            outline = replace(outline, alternative=_as_outline(alt, origin, alt_strip, ramp))
+            outline = replace(outline, alternative=_as_outline(alt, origin, alt_strip, ramp, domain))
     return outline
 
 
@@ -1759,7 +1765,7 @@ def _side_shifts(before, after) -> np.ndarray:
     return out
 
 
-def _as_outline(model, origin, strip, ramp) -> FaceOutline:
+def _as_outline(model, origin, strip, ramp, blur_domain="linear") -> FaceOutline:
     """A refined model (crop coordinates) as a FaceOutline in image coordinates."""
     lines, quads, corners, sides, normals, rms, contrast, residuals = model
     all_res = np.concatenate(residuals)
@@ -1774,6 +1780,7 @@ def _as_outline(model, origin, strip, ramp) -> FaceOutline:
         contrast=contrast,
         strip_px=strip,
         edge_width_px=ramp,
+        blur_domain=blur_domain,
     )
 
 
@@ -3056,7 +3063,8 @@ def silhouette(
         if len(rows) < min_points:
             out.append(None)
             continue
-        pts = _blob_boundary(image, blob_mask, rows, 0, sign, profile_half_width_px, min_contrast, channels)
+        pts = _blob_boundary(image, blob_mask, rows, 0, sign, profile_half_width_px, min_contrast, channels,
+                             encoded=outline.blur_domain == "encoded")
         if len(pts) < min_points:
             out.append(None)
             continue
@@ -3075,8 +3083,8 @@ def silhouette(
         gaps[side] = float(np.median(gap))
         out.append(pts if gaps[side] > min_gap_px and scatter <= max_scatter_px else None)
     return Silhouette(tuple(out), np.r_[gaps, _top_bottom_gaps(image, blob_mask, outline, margin_frac,
-                                                                profile_half_width_px, min_contrast,
-                                                                channels)])
+                                                                profile_half_width_px, min_contrast, channels,
+                                                                encoded=outline.blur_domain == "encoded")])
 
 
 FAR_RUN_SHARE = 0.9
@@ -3102,10 +3110,17 @@ def _line_scatter(pts: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(res - np.median(res))))
 
 
-def _blob_boundary(image, blob_mask, lines, axis, sign, half_width, min_contrast, channels) -> np.ndarray:
+def _blob_boundary(image, blob_mask, lines, axis, sign, half_width, min_contrast, channels,
+                   encoded=False) -> np.ndarray:
     """Sub-pixel points (M, 2) where the blob meets the background, one per row (`axis` 0: along u,
     outward `sign`) or per column (`axis` 1: along v) of `lines`, located like `face_outline`'s edge
-    points from the outermost blob pixel's boundary; only points with a measurable edge."""
+    points from the outermost blob pixel's boundary; only points with a measurable edge. `encoded`: the
+    image was blurred after its encoding (the face's `FaceOutline.blur_domain`), and the points are placed
+    on the encoded values as `face_outline` places such a face's sides (`_edge_offsets_encoded`, on a
+    profile half a pixel longer), where most of them show one step; read in linear light, such a blur puts
+    the boundary toward the brighter side: 0.26–0.48 px beyond the back vertical edge of the reconstruct
+    bench's blurred turned cubes before a bright background (s11, s17), and 0.15–0.42 px of gap beside
+    sides that show no side face, where the sharp images show 0.00–0.09 px. Not for "luma" (JPEG)."""
     h, w = image.shape[:2]
     sub = blob_mask[lines] if axis == 0 else blob_mask[:, lines].T
     n = sub.shape[1]
@@ -3129,6 +3144,13 @@ def _blob_boundary(image, blob_mask, lines, axis, sign, half_width, min_contrast
     linear = _edge_image(image[y0:y1, x0:x1], channels)
     if luma:
         return _luma_boundary(linear, start - [x0, y0], normal, half_width, min_contrast) + [x0, y0]
+    if encoded:  # (its profile half a pixel longer and its one-step look a pixel beyond: within `across`)
+        reach = half_width + 0.5
+        e, contrast, one_step = _edge_offsets_encoded(image[y0:y1, x0:x1, :3], start - [x0, y0], normal, reach,
+                                                      min_contrast)
+        if one_step.mean() >= _ONE_STEP_SHARE:
+            good = (contrast >= min_contrast) & (np.abs(e) <= reach - 0.5)
+            return start[good] + e[good, None] * normal[good]
     e, contrast, _ = _edge_offsets(linear, start - [x0, y0], normal, half_width, min_contrast)
     good = (contrast >= min_contrast) & (np.abs(e) <= half_width - 0.5)
     return start[good] + e[good, None] * normal[good]
@@ -3164,10 +3186,10 @@ def _luma_boundary(linear, start, normal, half_width, min_contrast) -> np.ndarra
     return centre[good] + e[good, None] * normal[good]
 
 
-def _top_bottom_gaps(image, blob_mask, outline, margin_frac, half_width, min_contrast, channels):
+def _top_bottom_gaps(image, blob_mask, outline, margin_frac, half_width, min_contrast, channels, encoded=False):
     """Median distance (px) from the front face's top and bottom sides outward to the blob's
     boundary, along the face's columns (less `margin_frac` of its width at each end): (2,), NaN
-    where not measurable."""
+    where not measurable. `encoded`: as `_blob_boundary`'s."""
     w = image.shape[1]
     tl, tr, br, bl = outline.corners_px
     left, right = max(tl[0], bl[0]), min(tr[0], br[0])
@@ -3178,7 +3200,7 @@ def _top_bottom_gaps(image, blob_mask, outline, margin_frac, half_width, min_con
     if len(cols) < 3:
         return gaps
     for k, sign in ((0, -1.0), (1, 1.0)):
-        pts = _blob_boundary(image, blob_mask, cols, 1, sign, half_width, min_contrast, channels)
+        pts = _blob_boundary(image, blob_mask, cols, 1, sign, half_width, min_contrast, channels, encoded)
         if len(pts) < 3:
             continue
         qa, qb, qc = outline.quadratics[k]

@@ -1335,6 +1335,41 @@ def test_silhouette_gives_the_back_edge_beside_a_side_face_and_drops_a_ragged_bo
     assert silhouette_sides(ragged, rag_blob, outline, max_scatter_px=np.inf)[0] is not None
 
 
+@pytest.mark.parametrize("side, background", [("left", "blue sky"), ("right", "blue sky"), ("left", "grey")])
+def test_the_silhouette_of_a_face_blurred_after_its_encoding_is_read_on_the_encoded_values(side, background):
+    """A blur of the stored sRGB values (image software) keeps the area under the encoded profile, so a
+    boundary read on linear light moves toward its brighter side. The front face's sides were read on the
+    encoded values (`face_outline(..., blur_domain="encoded")`), but the silhouette beside it in linear
+    light: on the reconstruct bench's blurred turned cubes, before a background brighter than their side
+    faces, the back vertical edge lay 0.26-0.48 px out, and the gaps beside sides showing no side face
+    0.15-0.42 px (0.00-0.09 px in the sharp images), which leaned their depths low (36 of 44 below the
+    truth). Read as the face's outline was (`FaceOutline.blur_domain`), the back edge lies within 0.08 px
+    of the truth and the other gaps within 0.08 px of 0; the linear reading of the same image puts the
+    back edge over 0.15 px out (the side face is darker than the background)."""
+    from scipy import ndimage
+    cube = FakeCube((60.3, 30.6), (84.8, 31.4), (85.5, 150.2), (61.1, 149.1), side=side, side_width=4.5,
+                    albedo=COLOURS["red"])
+    image, _ = make_image((180, 150), [cube], background=background, decoy=False)
+    soft = np.round(np.clip(ndimage.gaussian_filter(image, sigma=(0.7, 0.7, 0)), 0.0, 1.0) * 255.0) / 255.0
+    face = pixel_truth(image.shape[:2], cube, "face")
+    blob = face | pixel_truth(image.shape[:2], cube, "strip")
+    outline = face_outline(soft, face, blur_domain="encoded")
+    assert outline.blurred and outline.blur_domain == "encoded"
+    k, sign = (0, -1.0) if side == "left" else (1, 1.0)
+
+    def back_edge_offset(sil):  # median outward offset (px) of the back-edge points from the truth
+        pts = sil.sides[k]
+        true_u = (cube.left(pts[:, 1]) - 4.5) if side == "left" else (cube.right(pts[:, 1]) + 4.5)
+        return float(np.median(sign * (pts[:, 0] - true_u)))
+
+    sil = silhouette(soft, blob, outline)
+    assert abs(back_edge_offset(sil)) < 0.08
+    assert abs(sil.gaps_px[k] - 4.5) < 0.1
+    assert np.all(np.abs(np.delete(sil.gaps_px, k)) < 0.08), sil.gaps_px
+    as_linear = silhouette(soft, blob, dataclasses.replace(outline, blur_domain="linear"))
+    assert back_edge_offset(as_linear) > 0.15
+
+
 def test_silhouette_gap_above_a_top_face_strip():
     """A top face 3 px tall above the front face: the silhouette lies 3 px above its top side."""
     cube = FakeCube((60.3, 30.6), (84.8, 31.4), (85.5, 150.2), (61.1, 149.1), side=None, top_height=3.0,
