@@ -29,13 +29,14 @@ TARGET_SECONDS = 2.0
 _CONSOLE = "from catadioptric.cli import console; console()"  # the console script's entry point
 
 
-def _images(where: Path) -> list[Path]:
-    """The reconstruct bench's clean 2048×1536 images of our renderer, each written as PNG beside its setup."""
+def _images(where: Path, quick: bool = False) -> list[Path]:
+    """The reconstruct bench's clean 2048×1536 images of our renderer (of its quick cases with `quick`), each
+    written under `where` as PNG beside its setup."""
     from bench.bench_reconstruct import cases, our_render
     from catadioptric.setup import save_setup
 
     out = []
-    for renderer, sc in cases(False):
+    for renderer, sc in cases(quick):
         if renderer == "ours" and sc.setup.camera.resolution[0] == 2048:
             png = where / f"{sc.name}.png"
             cv2.imwrite(str(png), cv2.cvtColor(our_render(sc.setup), cv2.COLOR_RGB2BGR))

@@ -412,28 +412,15 @@ def command_seconds(quick: bool, log=print) -> dict | None:
     """Wall time of `catadioptric reconstruct IMAGE.png -o OUT.json` on each clean 2048x1536 image of ours,
     each in a fresh process as a user runs it: start-up (Python and the imports: about 0.45 s here), reading
     the image, the ray map, the first call's memory faulted in afresh, and the JSON written. The pipeline's own
-    time is the table's; this is what the command costs."""
-    import subprocess
+    time is the table's; this is what the command costs. (`bench_command_timing` writes the images and runs
+    the command, and times it against another revision.)"""
     import tempfile
 
-    from catadioptric.setup import save_setup
-    todo = [sc for r, sc in cases(quick) if r == "ours" and sc.setup.camera.resolution[0] == 2048]
-    if not todo:
+    from bench.bench_command_timing import ROOT, _images, _run
+    if not any(r == "ours" and sc.setup.camera.resolution[0] == 2048 for r, sc in cases(quick)):
         return None
-    code = "from catadioptric.cli import console; console()"  # the console script's entry point
-    root = Path(__file__).resolve().parent.parent  # this checkout's packages, as the bench imports them
-    secs = []
     with tempfile.TemporaryDirectory() as tmp:
-        for sc in todo:
-            png, out = Path(tmp) / f"{sc.name}.png", Path(tmp) / f"{sc.name}.result.json"
-            cv2.imwrite(str(png), cv2.cvtColor(our_render(sc.setup), cv2.COLOR_RGB2BGR))
-            save_setup(sc.setup, png.with_suffix(".toml"))
-            t0 = time.perf_counter()
-            done = subprocess.run([sys.executable, "-c", code, "reconstruct", str(png), "-o", str(out)], cwd=root,
-                                  capture_output=True, text=True, check=False)
-            secs.append(time.perf_counter() - t0)
-            if done.returncode != 0:
-                raise RuntimeError(f"catadioptric reconstruct {png.name}: {done.stderr.strip()}")
+        secs = [_run(ROOT, png, png.with_suffix(".result.json")) for png in _images(Path(tmp), quick)]
     s = {"median": float(np.median(secs)), "max": float(max(secs)), "seconds": secs, "images": len(secs)}
     log(f"  exact, 2048x1536: `catadioptric reconstruct IMAGE.png -o OUT.json` as a fresh process (start-up and "
         f"imports included), {len(secs)} clean images: median {s['median']:.2f} / max {s['max']:.2f} s")
