@@ -26,8 +26,12 @@ demo: $(STAMP)
 	@$(BYTECODE)
 	$(VENV)/bin/catadioptric demo
 
+# The tests spread over every core (pytest-xdist), each worker taking the next test as it frees up
+# (worksteal: a 35 s test does not hold back a queue behind it). On this project's 2-core VM the
+# suite took 237 s so (250 s handed out in fixed chunks) against 404 s in one process, the same
+# session. `pytest` alone (or `-n 0`) still runs them in one process.
 test: $(STAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto --dist worksteal
 
 bench: $(BENCH_STAMP)
 	@$(BYTECODE)

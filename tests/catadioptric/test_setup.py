@@ -50,7 +50,14 @@ def _set(d, dotted, value):
         d[keys[-1]] = value
 
 
-_DELETE = object()
+class _Deleted:
+    """The value that deletes a key (`BAD`); its repr names the test alike in every pytest process."""
+
+    def __repr__(self) -> str:
+        return "<deleted>"
+
+
+_DELETE = _Deleted()
 
 BAD = [
     ("camera.focal_px", [0.0, 350.0], "camera.focal_px: expected a list of 2 positive numbers"),
