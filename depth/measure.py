@@ -3059,12 +3059,13 @@ def silhouette(
     rows = np.arange(np.ceil(top + margin_frac * span), np.floor(bottom - margin_frac * span) + 1).astype(int)
     rows = rows[(rows >= 0) & (rows < h)]
     out, gaps = [], np.full(2, np.nan)
+    encoded = outline.blur_domain == "encoded"  # the boundary read as the face's sides were (`_blob_boundary`)
     for side, sign in ((0, -1.0), (1, 1.0)):
         if len(rows) < min_points:
             out.append(None)
             continue
         pts = _blob_boundary(image, blob_mask, rows, 0, sign, profile_half_width_px, min_contrast, channels,
-                             encoded=outline.blur_domain == "encoded")
+                             encoded=encoded)
         if len(pts) < min_points:
             out.append(None)
             continue
@@ -3084,7 +3085,7 @@ def silhouette(
         out.append(pts if gaps[side] > min_gap_px and scatter <= max_scatter_px else None)
     return Silhouette(tuple(out), np.r_[gaps, _top_bottom_gaps(image, blob_mask, outline, margin_frac,
                                                                 profile_half_width_px, min_contrast, channels,
-                                                                encoded=outline.blur_domain == "encoded")])
+                                                                encoded=encoded)])
 
 
 FAR_RUN_SHARE = 0.9
@@ -3141,8 +3142,8 @@ def _blob_boundary(image, blob_mask, lines, axis, sign, half_width, min_contrast
     lo = np.array([across, across]) * (np.arange(2) == axis) + (np.arange(2) != axis)
     x0, y0 = np.maximum(np.floor(start.min(axis=0) - lo).astype(int), 0)
     x1, y1 = np.minimum(np.floor(start.max(axis=0) + lo + 1).astype(int), (w, h))
-    linear = _edge_image(image[y0:y1, x0:x1], channels)
     if luma:
+        linear = _edge_image(image[y0:y1, x0:x1], channels)
         return _luma_boundary(linear, start - [x0, y0], normal, half_width, min_contrast) + [x0, y0]
     if encoded:  # (its profile half a pixel longer and its one-step look a pixel beyond: within `across`)
         reach = half_width + 0.5
@@ -3151,6 +3152,7 @@ def _blob_boundary(image, blob_mask, lines, axis, sign, half_width, min_contrast
         if one_step.mean() >= _ONE_STEP_SHARE:
             good = (contrast >= min_contrast) & (np.abs(e) <= reach - 0.5)
             return start[good] + e[good, None] * normal[good]
+    linear = _edge_image(image[y0:y1, x0:x1], channels)  # (not needed where the encoded values placed them)
     e, contrast, _ = _edge_offsets(linear, start - [x0, y0], normal, half_width, min_contrast)
     good = (contrast >= min_contrast) & (np.abs(e) <= half_width - 0.5)
     return start[good] + e[good, None] * normal[good]

@@ -1071,6 +1071,9 @@ MITSUBA_DARK_TURNED = Path(__file__).resolve().parents[1] / "data" / "mitsuba_gr
 """A 94×177 crop, from (909, 559), of a Mitsuba 3 render (16 spp; the holdout `python -m bench.holdout
 7070`, scene 3, cube 2): a dark grey cube (albedo 0.06) 2.36 cm across, turned 18.6° from facing the
 mirror axis, its left side face merged with its front face (13 px wide) in the outline."""
+DARK_TURNED_CROP = (MITSUBA_DARK_TURNED, (94, 177), 4202.017, (1023.5 - 909, 767.5 - 559), (0.0, -0.01612, 0.57268),
+                    0.0849, 0.48976)  # `_crop_cube`'s arguments
+DARK_TURNED_CENTRE = (-0.12547, 0.04315, 0.64047)  # the true cube's centre
 
 
 def test_the_depth_sigma_of_a_merged_turned_face_covers_the_turns_that_fit_as_well():
@@ -1079,9 +1082,8 @@ def test_the_depth_sigma_of_a_merged_turned_face_covers_the_turns_that_fit_as_we
     where the trust region starts tiny, left the turn that fits twice as well unplaced: the depth was
     reported at ±1.5 %, 21 σ off. The σ must cover the depth (within 3 σ) and stay a bound worth having
     (under half the depth). The camera is the render's, its principal point moved to the crop's."""
-    found, mirror = _crop_cube(MITSUBA_DARK_TURNED, (94, 177), 4202.017, (1023.5 - 909, 767.5 - 559),
-                               (0.0, -0.01612, 0.57268), 0.0849, 0.48976)
-    depth = float(mirror.distance_to_axis(np.array([[-0.12547, 0.04315, 0.64047]]))[0])
+    found, mirror = _crop_cube(*DARK_TURNED_CROP)
+    depth = float(mirror.distance_to_axis(np.array([DARK_TURNED_CENTRE]))[0])
     assert abs(found.depth - depth) < 3.0 * found.depth_std
     assert found.depth_std < 0.5 * depth
 
@@ -1224,15 +1226,18 @@ MITSUBA_GREY_HORIZON = Path(__file__).resolve().parents[1] / "data" / "mitsuba_g
 """An 89×155 crop, from (597, 725), of a Mitsuba 3 render (16 spp; the holdout `python -m bench.holdout 8080`,
 scene 1, cube 3): a light grey cube 2.8 cm across standing across the horizon, whose left side against
 the sky is a faint step (`tests/depth/test_measure.py`)."""
+GREY_HORIZON_CROP = (MITSUBA_GREY_HORIZON, (89, 155), 4019.265, (799.5 - 597, 599.5 - 725), (0.0, -0.00784, 0.81501),
+                     0.11706, 0.54213)  # `_crop_cube`'s arguments
+GREY_HORIZON_CENTRE = (-0.44462, -0.07036, 0.84367)  # the true cube's centre
 
 
 def test_a_light_grey_cube_whose_side_against_the_sky_is_faint_is_reconstructed_within_its_sigma():
     """The whole pipeline on the crop, the camera the render's with its principal point moved to the
     crop's: the cube, missed before its faint side was traced, is found, and its depth lies within 3 σ
     (its 3 px side face merged with the front face leaves the turn loose: 34 % off at ±25 %)."""
-    found, mirror = _crop_cube(MITSUBA_GREY_HORIZON, (89, 155), 4019.265, (799.5 - 597, 599.5 - 725), (0.0, -0.00784, 0.81501), 0.11706, 0.54213)
+    found, mirror = _crop_cube(*GREY_HORIZON_CROP)
     assert np.allclose(np.mean(found.corners_px, axis=0), [44.7, 77.7], atol=3.0)
-    depth = float(mirror.distance_to_axis(np.array([[-0.44462, -0.07036, 0.84367]]))[0])
+    depth = float(mirror.distance_to_axis(np.array([GREY_HORIZON_CENTRE]))[0])
     assert abs(found.depth - depth) < 3.0 * found.depth_std
 
 
@@ -1242,12 +1247,8 @@ _TURN_FROM_CORNERS = ("open: sampled from 2 px of the corners the top and bottom
 
 
 @pytest.mark.xfail(strict=True, reason=_TURN_FROM_CORNERS)
-@pytest.mark.parametrize("crop, centre", [
-    ((MITSUBA_DARK_TURNED, (94, 177), 4202.017, (1023.5 - 909, 767.5 - 559), (0.0, -0.01612, 0.57268), 0.0849, 0.48976),
-     (-0.12547, 0.04315, 0.64047)),
-    ((MITSUBA_GREY_HORIZON, (89, 155), 4019.265, (799.5 - 597, 599.5 - 725), (0.0, -0.00784, 0.81501), 0.11706, 0.54213),
-     (-0.44462, -0.07036, 0.84367)),
-], ids=["7070-s3-2", "8080-s1-3"])
+@pytest.mark.parametrize("crop, centre", [(DARK_TURNED_CROP, DARK_TURNED_CENTRE), (GREY_HORIZON_CROP, GREY_HORIZON_CENTRE)],
+                         ids=["7070-s3-2", "8080-s1-3"])
 def test_a_turned_face_merged_with_its_side_face_reads_its_turn_from_the_ends_of_its_top_and_bottom(crop, centre):
     """Faces 9–13 px wide, turned 19–20°, their side faces merged with them in the outline: the left and
     right sides are the cube's outer contour, and the turn shows in the top and bottom sides, whose slopes
