@@ -41,9 +41,11 @@ SIDE_NAMES = ("left", "right", "top", "bottom")
 
 IMAGE_MODULES = ("scipy.ndimage",)
 """The scipy modules this module needs, imported at their first use rather than with it: in a fresh
-`catadioptric reconstruct` scipy.ndimage took 0.2 s of the import time, which
-`depth.reconstruct.reconstruct` now spends in a thread while it checks the image and starts the
-detection (whose first use of it is past the search for grey cubes)."""
+`catadioptric reconstruct` scipy.ndimage took 0.3 s of the import time, which
+`depth.reconstruct.reconstruct` spends while it detects the cubes, in the process that will outline
+the faces (`depth.workers.fork_helper`). `detect_cubes` itself uses none of them (its Gaussian
+smoothing and gradients are OpenCV's and numpy's with scipy's weights: `_smoothed_gradient`,
+`_circular_smooth`)."""
 
 
 # ----------------------------------------------------------------------------- results
@@ -857,8 +859,31 @@ def _as_detection(rgb, value, chroma, local, origin, shape, *, cut, occluded, ac
                          reason="; ".join(reasons) if reasons else None, achromatic=achromatic)
 
 
+def _gaussian_kernel(sigma: float) -> np.ndarray:
+    """scipy.ndimage's Gaussian weights for `sigma` (truncated at 4 σ), as `gaussian_filter` builds them."""
+    x = np.arange(-int(4.0 * sigma + 0.5), int(4.0 * sigma + 0.5) + 1)
+    phi = np.exp(-0.5 / (sigma * sigma) * x ** 2)
+    return phi / phi.sum()
+
+
 def _circular_smooth(hist: np.ndarray, sigma: float) -> np.ndarray:
-    return scipy.ndimage.gaussian_filter1d(hist.astype(np.float64), sigma, mode="wrap")
+    """`scipy.ndimage.gaussian_filter1d(hist, sigma, mode="wrap")`, in numpy (the detection imports no
+    scipy module: `IMAGE_MODULES`)."""
+    k = _gaussian_kernel(sigma)
+    r = len(k) // 2
+    padded = np.asarray(hist, dtype=np.float64)[np.arange(-r, len(hist) + r) % len(hist)]
+    return np.correlate(padded, k, mode="valid")
+
+
+def _smoothed_gradient(value: np.ndarray, sigma: float) -> np.ndarray:
+    """|∇| of `value` smoothed by a Gaussian of `sigma`, per pixel, by 3×3 Sobel filters / 8:
+    `np.hypot(ndimage.sobel(s, 0), ndimage.sobel(s, 1)) / 8` of `s = ndimage.gaussian_filter(value, sigma)`,
+    in OpenCV with scipy's weights and its "reflect" border (the detection imports no scipy module)."""
+    k = _gaussian_kernel(sigma)
+    smooth = cv2.sepFilter2D(np.asarray(value, dtype=np.float64), cv2.CV_64F, k, k, borderType=cv2.BORDER_REFLECT)
+    gy = cv2.Sobel(smooth, cv2.CV_64F, 0, 1, ksize=3, borderType=cv2.BORDER_REFLECT)
+    gx = cv2.Sobel(smooth, cv2.CV_64F, 1, 0, ksize=3, borderType=cv2.BORDER_REFLECT)
+    return np.hypot(gy, gx) / 8.0
 
 
 def _hue_modes(hue: np.ndarray, min_mass: float, min_separation_deg: float = 40.0) -> np.ndarray:
@@ -1203,8 +1228,7 @@ def _split_by_brightness(value: np.ndarray, chroma: np.ndarray, blob: np.ndarray
     brightness, at least half its chroma). What is left of the blob, less one-pixel
     slivers, makes the other faces.
     """
-    smooth = scipy.ndimage.gaussian_filter(value, 0.7)
-    grad = np.hypot(scipy.ndimage.sobel(smooth, axis=0), scipy.ndimage.sobel(smooth, axis=1)) / 8.0
+    grad = _smoothed_gradient(value, 0.7)
     noise = float(np.percentile(grad[blob], 30))
     flat = blob & (grad < max(0.25 * min_contrast, 5.0 * noise))
     core = _largest_component(flat)

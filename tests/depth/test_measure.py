@@ -2666,3 +2666,57 @@ def test_otsus_threshold_of_two_separate_levels_lies_between_them(low, gap, spre
     b = low + spread + gap + spread * rng.uniform(0.0, 1.0, sizes[1])
     t = _otsu_threshold(rng.permutation(np.r_[a, b]))
     assert a.max() < t < b.min()
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 60), st.integers(1, 60), st.integers(0, 2 ** 31 - 1), st.floats(0.3, 3.0))
+def test_the_detections_smoothed_gradient_is_scipy_ndimages(h, w, seed, sigma):
+    # `detect_cubes` smooths and differentiates with OpenCV (scipy's weights and "reflect" border) so that
+    # it imports no scipy module; scipy.ndimage is the reference
+    from scipy import ndimage
+
+    from depth.measure import _smoothed_gradient
+    rng = np.random.default_rng(seed)
+    value = rng.random((h, w)) * rng.choice([0.0, 1.0]) + np.add.outer(np.arange(h) * 0.02, np.arange(w) * -0.01)
+    smooth = ndimage.gaussian_filter(value, sigma)
+    expected = np.hypot(ndimage.sobel(smooth, axis=0), ndimage.sobel(smooth, axis=1)) / 8.0
+    np.testing.assert_allclose(_smoothed_gradient(value, sigma), expected, rtol=0, atol=1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 400), st.integers(0, 2 ** 31 - 1), st.floats(0.3, 30.0))
+def test_the_hue_histograms_circular_smoothing_is_scipy_ndimages(n, seed, sigma):
+    from scipy import ndimage
+
+    from depth.measure import _circular_smooth
+    hist = np.random.default_rng(seed).random(n) * 100
+    np.testing.assert_allclose(_circular_smooth(hist, sigma), ndimage.gaussian_filter1d(hist, sigma, mode="wrap"),
+                               rtol=0, atol=1e-9)
+
+
+def test_detecting_cubes_imports_no_scipy_module():
+    # a fresh `catadioptric reconstruct` imports scipy's modules in the process that outlines the faces
+    # while it detects the cubes (`depth.reconstruct`, `depth.workers.fork_helper`): the detection needs none
+    import subprocess
+    import sys
+    code = """
+import sys
+import numpy as np
+from raytrace.scene import Scene, Cube
+from raytrace.camera import PinholeCamera
+from raytrace.mirror import CylinderMirror
+from raytrace.render import render, linear_to_srgb8
+from raytrace.truth import mirror_mask
+from depth.measure import detect_cubes
+camera = PinholeCamera.from_look_at((320, 240), (700.0, 700.0), None, (0, 0, 0.55), (0, 0, 0), (0, 1, 0))
+mirror = CylinderMirror(0.1, 0.49, (0, 0, 0), (0, 1, 0))
+cubes = [Cube(0.05, (0.15, 0.0, 0.35), color=(0.8, 0.1, 0.1)), Cube(0.05, (-0.2, 0.02, 0.4), color=(0.5, 0.5, 0.5))]
+img = linear_to_srgb8(render(Scene(mirror, cubes), camera, spp=4, seed=0).image) / 255.0
+before = {m for m in sys.modules if m.startswith("scipy.")}
+dets = detect_cubes(img, mirror_mask(camera, mirror))
+print(len(dets), sorted({m for m in sys.modules if m.startswith("scipy.")} - before))
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr
+    found, imported = done.stdout.split(" ", 1)
+    assert int(found) >= 1 and imported.strip() == "[]"
