@@ -108,3 +108,86 @@ def test_the_estimators_scipy_modules_are_not_imported_with_the_package():
             f"print(sorted(set({list(SOLVER_MODULES)!r}) & set(sys.modules)))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "[]"
+
+
+def _fresh_module(tmp_path, monkeypatch, name, body="VALUE = 7\n"):
+    """A module `name` importable from tmp_path and not imported in this process."""
+    import sys
+    (tmp_path / f"{name}.py").write_text(body)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, name, raising=False)
+
+
+def test_a_helper_imports_its_modules_there_and_runs_its_task_on_the_payload(tmp_path, monkeypatch):
+    import sys
+
+    from depth.workers import fork_helper
+    _fresh_module(tmp_path, monkeypatch, "helper_mod")
+    state = np.arange(6) * 10  # this process's state when the helper forks: inherited, not sent
+
+    def task(payload, progress):
+        for k in range(3):
+            progress(k + 1, 3)
+        return int(state[payload]) + sys.modules["helper_mod"].VALUE, os.getpid()
+
+    helper = fork_helper(task, ["helper_mod", "numpy"])
+    assert helper is not None
+    state[4] = -1  # changed here after the fork: the helper keeps its own copy
+    calls = []
+    value, pid = helper.run(4, progress=lambda done, total: calls.append((done, total, os.getpid())))
+    assert value == 47 and pid != os.getpid()
+    assert [(d, t) for d, t, _ in calls] == [(1, 3), (2, 3), (3, 3)] and {p for *_, p in calls} == {os.getpid()}
+    assert "helper_mod" not in sys.modules  # imported in the helper only
+
+
+def test_no_helper_where_every_module_is_imported_already():
+    from depth.workers import fork_helper
+    assert fork_helper(lambda payload, progress: payload, ["numpy", "os"]) is None
+
+
+def test_a_helper_task_error_is_raised_here_and_a_helper_never_run_ends(tmp_path, monkeypatch):
+    from depth.workers import fork_helper
+    _fresh_module(tmp_path, monkeypatch, "helper_mod2")
+
+    def task(payload, progress):
+        raise KeyError(f"no face {payload}")
+
+    helper = fork_helper(task, ["helper_mod2"])
+    with pytest.raises(KeyError, match="no face 3"):
+        helper.run(3)
+    process = helper._process
+    assert process is None  # closed by run
+    idle = fork_helper(task, ["helper_mod2"])  # closed without a payload (this process left early)
+    child = idle._process
+    idle.close()
+    assert not child.is_alive() and child.exitcode is not None
+    idle.close()  # twice: nothing more to do
+
+
+def test_a_helper_closed_while_it_runs_its_task_is_ended_not_waited_for(tmp_path, monkeypatch):
+    import time
+
+    from depth.workers import fork_helper
+    _fresh_module(tmp_path, monkeypatch, "helper_mod4")
+
+    def interrupted(done, total):  # this process is interrupted while the helper still works
+        raise KeyboardInterrupt
+
+    def task(payload, progress):
+        progress(1, 2)
+        time.sleep(60)
+
+    helper = fork_helper(task, ["helper_mod4"])
+    child = helper._process
+    t0 = time.perf_counter()
+    with pytest.raises(KeyboardInterrupt):
+        helper.run(0, progress=interrupted)
+    assert time.perf_counter() - t0 < 10 and not child.is_alive()
+
+
+def test_a_helper_that_dies_is_reported_not_waited_for(tmp_path, monkeypatch):
+    from depth.workers import fork_helper
+    _fresh_module(tmp_path, monkeypatch, "helper_mod3")
+    helper = fork_helper(lambda payload, progress: os._exit(3), ["helper_mod3"])
+    with pytest.raises(RuntimeError, match="ended without a result"):
+        helper.run(1)
