@@ -19,7 +19,7 @@ from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COM
                             NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, SOLVER_MODULES, CubeEstimate,
                             FaceMeasurement, _silhouette_disagreement, estimate_face, estimate_faces_shape_prior,
                             expected_work)
-from depth.workers import fork_map, import_in_background
+from depth.workers import fork_helper, fork_map, import_in_background
 from raytrace.scene import Cube
 
 __all__ = ["ALL_METHODS", "CubeResult", "Refusal", "Reconstruction", "reconstruct", "check_image"]
@@ -342,24 +342,72 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         raise DepthError(f"blur_domain: expected one of auto, {', '.join(BLUR_DOMAINS)}, got {blur_domain!r}")
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1):
         raise DepthError(f"workers: expected an integer >= 1, got {workers!r}")
-    # the modules of scipy and xslit_fit needed later, imported while the cubes are detected (which imports
-    # nothing meanwhile but these)
-    scipy_imported = import_in_background(IMAGE_MODULES + SOLVER_MODULES)
     img = check_image(image, camera.resolution)
     det_img = despeckled(img) if compressed else img
+
+    def faces(payload, relay):  # in the helper: the faces of the detections sent to it
+        mask_bits, shape, packed = payload
+        mask = np.unpackbits(mask_bits, count=shape[0] * shape[1]).reshape(shape).view(bool)
+        with checked_images(img, det_img):
+            rec = _faces(img, det_img, camera, mirror, mask, _unpacked(packed, shape), method, cube_size,
+                         relay if progress is not None else None, compressed, blur_domain, workers)
+        return replace(rec, mirror_mask=None)  # (the parent has it)
+
+    # The modules of scipy and xslit_fit needed for the faces, imported while the cubes are detected (which
+    # needs none of them): in a process forked now (`fork_helper`), which then outlines and estimates the
+    # faces (on every core: it forks the workers); else in a thread here (which imports nothing meanwhile
+    # but these).
+    helper = fork_helper(faces, IMAGE_MODULES + SOLVER_MODULES)
+    scipy_imported = import_in_background(IMAGE_MODULES + SOLVER_MODULES) if helper is None else None
     # checked here once: not again by each face's outline, silhouette, blur evidence and regrowth
-    with checked_images(img, det_img):
-        return _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, compressed, blur_domain,
-                            workers, scipy_imported)
+    try:
+        with checked_images(img, det_img):
+            return _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, compressed, blur_domain,
+                                workers, scipy_imported, helper)
+    finally:
+        if helper is not None:
+            helper.close()
+
+
+def _packed(detections) -> list:
+    """The detections with their full-image masks cut to their bounding boxes, to cross a pipe (a 2048×1536
+    mask is 3 MB); `_unpacked` restores them. A mask with pixels beyond its detection's box goes whole."""
+    out = []
+    for det in detections:
+        u0, v0, u1, v1 = det.bbox
+
+        def cut(m):
+            crop = m[v0:v1, u0:u1]
+            return ("box", crop.copy()) if np.count_nonzero(crop) == np.count_nonzero(m) else ("whole", m)
+        out.append(replace(det, mask=cut(det.mask), front_face_mask=cut(det.front_face_mask),
+                           side_face_masks=[cut(m) for m in det.side_face_masks]))
+    return out
+
+
+def _unpacked(packed, shape) -> list:
+    """`_packed`'s detections as they were."""
+    out = []
+    for det in packed:
+        u0, v0, u1, v1 = det.bbox
+
+        def whole(m):
+            kind, arr = m
+            if kind == "whole":
+                return arr
+            full = np.zeros(shape, dtype=bool)
+            full[v0:v1, u0:u1] = arr
+            return full
+        out.append(replace(det, mask=whole(det.mask), front_face_mask=whole(det.front_face_mask),
+                           side_face_masks=[whole(m) for m in det.side_face_masks]))
+    return out
 
 
 def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, compressed, blur_domain, workers,
-                 scipy_imported) -> Reconstruction:
-    """`reconstruct` of its checked image `img` (and `det_img`, the one cubes are detected on)."""
-    from raytrace.truth import mirror_mask, mirror_rays
-    from depth.measure import (FAINT_EDGE_CONTRAST, FAINT_EDGE_READINGS, blur_domain_evidence, convex_filled,
-                               detect_cubes, extended_to_blob, face_outline, faint_regrowth, pooled_blur_domain,
-                               same_material_faces)
+                 scipy_imported, helper) -> Reconstruction:
+    """`reconstruct` of its checked image `img` (and `det_img`, the one cubes are detected on): the mirror
+    region and the cubes detected in it here; their faces by the helper, where there is one, else here."""
+    from raytrace.truth import mirror_mask
+    from depth.measure import detect_cubes
 
     mask = mirror_mask(camera, mirror)
     if not mask.any():
@@ -373,6 +421,23 @@ def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, comp
                                              for k in range(3)))
     if spread < 2.0 / 255.0:
         raise DepthError("image: no mirror content (the mirror region is uniform)")
+    detections = detect_cubes(det_img, mask, compressed=compressed)
+    if helper is not None:
+        rec = helper.run((np.packbits(mask), mask.shape, _packed(detections)), progress)
+        return replace(rec, mirror_mask=mask)
+    scipy_imported()  # before any fork
+    return _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, progress, compressed,
+                  blur_domain, workers)
+
+
+def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, progress, compressed, blur_domain,
+           workers) -> Reconstruction:
+    """`reconstruct`'s faces of the detections: each outlined and estimated (in worker processes), or
+    refused with the reason."""
+    from raytrace.truth import mirror_rays
+    from depth.measure import (FAINT_EDGE_CONTRAST, FAINT_EDGE_READINGS, blur_domain_evidence, convex_filled,
+                               extended_to_blob, face_outline, faint_regrowth, pooled_blur_domain,
+                               same_material_faces)
 
     def rays(px):
         r = mirror_rays(camera, mirror, px)
@@ -389,8 +454,6 @@ def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, comp
             if outline:
                 yield face_mask | part, outline
 
-    detections = detect_cubes(det_img, mask, compressed=compressed)
-    scipy_imported()  # before any fork
     blobs = np.zeros(mask.shape, dtype=bool)  # every blob's pixels, refused ones too
     for det in detections:
         blobs |= det.mask

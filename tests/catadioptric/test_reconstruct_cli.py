@@ -505,3 +505,36 @@ def test_a_white_cube_as_noisy_as_a_path_tracers_is_found_whole(seed):
     cube = rec.cubes[0]
     assert np.linalg.norm(cube.estimate.center - truth["center"]) / truth["depth"] < 0.03
     assert abs(cube.depth - truth["depth"]) < 3.0 * cube.depth_std
+
+
+def test_the_faces_outlined_in_a_helper_process_give_the_results_of_this_one(scene, tmp_path, monkeypatch):
+    # A fresh process forks a helper that imports the estimators' modules while this one detects the cubes,
+    # then outlines and estimates the faces (`depth.workers.fork_helper`). Here those modules are imported
+    # already, so a module not yet imported is added to the list to make `reconstruct` fork one.
+    import sys
+
+    import depth.reconstruct as dr
+    from catadioptric.setup import load_setup
+    setup = load_setup(scene / "in.toml")
+    camera, mirror = setup.camera.build(), setup.mirror.build()
+    img = cv2.cvtColor(cv2.imread(str(scene / "mirror.png")), cv2.COLOR_BGR2RGB)
+    calls = {"here": [], "helper": []}
+    here = dr.reconstruct(img, camera, mirror, progress=lambda d, t: calls["here"].append((d, t)))
+    (tmp_path / "not_yet_imported.py").write_text("")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "not_yet_imported", raising=False)
+    monkeypatch.setattr(dr, "SOLVER_MODULES", dr.SOLVER_MODULES + ("not_yet_imported",))
+    forked = []
+    real = dr.fork_helper
+    monkeypatch.setattr(dr, "fork_helper", lambda *a: forked.append(real(*a)) or forked[-1])
+    there = dr.reconstruct(img, camera, mirror, progress=lambda d, t: calls["helper"].append((d, t)))
+    assert len(forked) == 1 and forked[0] is not None and forked[0]._process is None  # it ran and was closed
+    assert "not_yet_imported" not in sys.modules
+    assert len(here.cubes) == len(there.cubes) == 2
+    for a, b in zip(here.cubes, there.cubes):
+        np.testing.assert_array_equal(a.estimate.center, b.estimate.center)
+        np.testing.assert_array_equal(a.corners_px, b.corners_px)
+        assert (a.depth, a.depth_std, a.bbox) == (b.depth, b.depth_std, b.bbox)
+    assert here.refused == there.refused and here.blur_domain == there.blur_domain
+    np.testing.assert_array_equal(here.mirror_mask, there.mirror_mask)
+    assert calls["helper"] == calls["here"] and calls["here"][-1] == (4, 4)

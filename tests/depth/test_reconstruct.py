@@ -193,3 +193,36 @@ def test_check_image_takes_8_bit_as_it_is_and_refuses_float_values_outside_0_1()
         img[2, 3, 1] = bad
         with pytest.raises(DepthError, match=r"image: expected values in \[0, 1\]"):
             check_image(img, (5, 4))
+
+
+def test_detections_packed_to_cross_a_pipe_come_back_as_they_were():
+    # `reconstruct` sends its detections to the helper process that outlines the faces cut to their boxes
+    import pickle
+
+    from depth.measure import CubeDetection
+    from depth.reconstruct import _packed, _unpacked
+    rng = np.random.default_rng(3)
+    shape = (60, 80)
+    dets = []
+    for k in range(3):
+        blob = np.zeros(shape, dtype=bool)
+        blob[10 + k:30 + 2 * k, 5 + 20 * k:18 + 20 * k] = rng.random((20 + k, 13)) < 0.8
+        rows, cols = np.flatnonzero(blob.any(axis=1)), np.flatnonzero(blob.any(axis=0))
+        bbox = (int(cols[0]), int(rows[0]), int(cols[-1] + 1), int(rows[-1] + 1))
+        front = blob & (rng.random(shape) < 0.6)
+        side = blob & ~front
+        if k == 2:  # a side mask with a pixel beyond the blob's box goes whole
+            side = side.copy()
+            side[0, 0] = True
+        dets.append(CubeDetection(mask=blob, front_face_mask=front, side_face_masks=[side, np.zeros(shape, bool)],
+                                  bbox=bbox, color=rng.random(3), achromatic=bool(k % 2), reason=None if k else "x"))
+    packed = _packed(dets)
+    assert len(pickle.dumps(packed)) < len(pickle.dumps(dets)) / 2
+    back = _unpacked(pickle.loads(pickle.dumps(packed)), shape)
+    for a, b in zip(dets, back):
+        for ma, mb in zip([a.mask, a.front_face_mask] + a.side_face_masks, [b.mask, b.front_face_mask] + b.side_face_masks):
+            assert mb.dtype == bool and mb.shape == shape
+            np.testing.assert_array_equal(ma, mb)
+        assert (a.bbox, a.achromatic, a.reason, a.cut_by_mirror_edge, a.occluded) == \
+               (b.bbox, b.achromatic, b.reason, b.cut_by_mirror_edge, b.occluded)
+        np.testing.assert_array_equal(a.color, b.color)
