@@ -23,7 +23,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from bench.bench_floor_timing import ROOT, _flag, _worktree
+from bench.bench_floor_timing import ROOT, _flag, _worktree, compiled
 
 TARGET_SECONDS = 2.0
 _CONSOLE = "from catadioptric.cli import console; console()"  # the console script's entry point
@@ -72,6 +72,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         images = _images(tmp)
+        compiled(ROOT)
         base = _worktree(against, tmp, bench="command_timing") if against else None
         roots = {"here": ROOT} | ({"base": base} if base is not None else {})
         seconds = {name: {png.stem: [] for png in images} for name in roots}
