@@ -354,10 +354,13 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         return replace(rec, mirror_mask=None)  # (the parent has it)
 
     # The modules of scipy and xslit_fit needed for the faces, imported while the cubes are detected (which
-    # needs none of them): in a process forked now (`fork_helper`), which then outlines and estimates the
-    # faces (on every core: it forks the workers); else in a thread here (which imports nothing meanwhile
-    # but these).
-    helper = fork_helper(faces, IMAGE_MODULES + SOLVER_MODULES)
+    # needs none of them): on a process's first call, in a process forked now (`fork_helper`), which then
+    # outlines and estimates the faces (on every core: it forks the workers); else in a thread here (which
+    # imports nothing meanwhile but these), so that a process calling again (a script looping over images)
+    # has them from its second call on rather than forking a helper that imports them again each time.
+    global _HELPER_FORKED
+    helper = None if _HELPER_FORKED else fork_helper(faces, IMAGE_MODULES + SOLVER_MODULES)
+    _HELPER_FORKED = _HELPER_FORKED or helper is not None
     scipy_imported = import_in_background(IMAGE_MODULES + SOLVER_MODULES) if helper is None else None
     # checked here once: not again by each face's outline, silhouette, blur evidence and regrowth
     try:
@@ -367,6 +370,9 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     finally:
         if helper is not None:
             helper.close()
+
+
+_HELPER_FORKED = False  # whether `reconstruct` has forked a helper in this process (it does so once)
 
 
 def _packed(detections) -> list:

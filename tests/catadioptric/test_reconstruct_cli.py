@@ -524,12 +524,17 @@ def test_the_faces_outlined_in_a_helper_process_give_the_results_of_this_one(sce
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.delitem(sys.modules, "not_yet_imported", raising=False)
     monkeypatch.setattr(dr, "SOLVER_MODULES", dr.SOLVER_MODULES + ("not_yet_imported",))
+    monkeypatch.setattr(dr, "_HELPER_FORKED", False)  # as in a fresh process
     forked = []
     real = dr.fork_helper
     monkeypatch.setattr(dr, "fork_helper", lambda *a: forked.append(real(*a)) or forked[-1])
     there = dr.reconstruct(img, camera, mirror, progress=lambda d, t: calls["helper"].append((d, t)))
     assert len(forked) == 1 and forked[0] is not None and forked[0]._process is None  # it ran and was closed
     assert "not_yet_imported" not in sys.modules
+    # a second call in this process forks no helper again: it imports the modules here, beside the detection
+    again = dr.reconstruct(img, camera, mirror)
+    assert len(forked) == 1 and "not_yet_imported" in sys.modules
+    assert [c.estimate.center.tolist() for c in again.cubes] == [c.estimate.center.tolist() for c in here.cubes]
     assert len(here.cubes) == len(there.cubes) == 2
     for a, b in zip(here.cubes, there.cubes):
         np.testing.assert_array_equal(a.estimate.center, b.estimate.center)
