@@ -17,6 +17,7 @@ from __future__ import annotations
 import importlib
 import multiprocessing
 import os
+import signal
 import sys
 import threading
 from collections.abc import Callable
@@ -161,7 +162,8 @@ class Helper:
 
     def close(self) -> None:
         """End the helper and wait for it: one that has sent its result ends by itself; one still importing
-        or running its task (this process is leaving early, on an error or an interrupt) is terminated."""
+        or running its task (this process is leaving early, on an error or an interrupt) is terminated,
+        with the workers it forked."""
         if self._process is None:
             return
         process, self._process = self._process, None
@@ -169,11 +171,15 @@ class Helper:
         if self._done:
             process.join(timeout=5.0)
         if process.is_alive():
-            process.terminate()
+            try:  # the helper and the workers it forked (its process group: `_own_group`)
+                os.killpg(process.pid, signal.SIGTERM)
+            except OSError:
+                process.terminate()
         process.join()
 
 
 def _helper_main(conn, task, modules) -> None:
+    _own_group(os.getpid())
     for name in modules:
         try:
             importlib.import_module(name)
@@ -188,10 +194,27 @@ def _helper_main(conn, task, modules) -> None:
     except BaseException as exc:  # noqa: BLE001 - raised again in the parent
         result = ("error", exc)
     try:
-        conn.send(result)
-    except Exception as exc:  # an unpicklable result or exception: its message
-        conn.send(("error", RuntimeError(f"{type(exc).__name__}: {exc} (sending the helper's {result[0]})")))
+        try:
+            conn.send(result)
+        except (BrokenPipeError, ConnectionResetError):  # the parent has gone (an interrupt): nobody to tell
+            return
+        except Exception as exc:  # an unpicklable result or exception: its message
+            conn.send(("error", RuntimeError(f"{type(exc).__name__}: {exc} (sending the helper's {result[0]})")))
+    except (BrokenPipeError, ConnectionResetError):
+        return
     conn.close()
+
+
+def _own_group(pid: int) -> None:
+    """Put process `pid` (a helper) in a process group of its own, which its workers join as it forks them:
+    a Ctrl-C at the terminal then reaches this process alone, which ends the helper's group as a whole
+    (`Helper.close`). (Interrupted with the rest, the helper printed an import's traceback, or was ended
+    before its workers, which then waited for it for ever.) Called by both processes, so that whichever
+    runs first does it."""
+    try:
+        os.setpgid(pid, pid)
+    except OSError:  # already done by the other side, or the helper has ended
+        pass
 
 
 def fork_helper(task, modules) -> Helper | None:
@@ -211,5 +234,6 @@ def fork_helper(task, modules) -> Helper | None:
     here, there = ctx.Pipe()
     process = ctx.Process(target=_helper_main, args=(there, task, todo), name="fork_helper")
     process.start()
+    _own_group(process.pid)
     there.close()
     return Helper(process, here)

@@ -165,24 +165,50 @@ def test_a_helper_task_error_is_raised_here_and_a_helper_never_run_ends(tmp_path
 
 
 def test_a_helper_closed_while_it_runs_its_task_is_ended_not_waited_for(tmp_path, monkeypatch):
+    import signal
     import time
 
     from depth.workers import fork_helper
     _fresh_module(tmp_path, monkeypatch, "helper_mod4")
 
-    def interrupted(done, total):  # this process is interrupted while the helper still works
-        raise KeyboardInterrupt
+    def work(i):  # in the workers the helper forks
+        (tmp_path / f"worker{i}").write_text(str(os.getpid()))
+        time.sleep(60)
 
     def task(payload, progress):
-        progress(1, 2)
-        time.sleep(60)
+        progress(0, 2)
+        fork_map(work, 2, workers=2)
+
+    def interrupted(done, total):  # this process is interrupted while the helper's workers still work
+        deadline = time.perf_counter() + 30
+        while len(list(tmp_path.glob("worker*"))) < 2 and time.perf_counter() < deadline:
+            time.sleep(0.05)
+        raise KeyboardInterrupt
+
+    def gone(pid):  # ended (a zombie until whoever adopted it reaps it)
+        try:
+            with open(f"/proc/{pid}/stat") as f:
+                return f.read().rsplit(")", 1)[1].split()[0] in "ZX"
+        except FileNotFoundError:
+            return True
 
     helper = fork_helper(task, ["helper_mod4"])
     child = helper._process
     t0 = time.perf_counter()
     with pytest.raises(KeyboardInterrupt):
         helper.run(0, progress=interrupted)
-    assert time.perf_counter() - t0 < 10 and not child.is_alive()
+    workers = [int(p.read_text()) for p in tmp_path.glob("worker*")]
+    try:
+        assert len(workers) == 2 and not child.is_alive()
+        deadline = time.perf_counter() + 10
+        while not all(gone(pid) for pid in workers) and time.perf_counter() < deadline:
+            time.sleep(0.05)
+        assert all(gone(pid) for pid in workers)  # the workers it forked ended with it
+        assert time.perf_counter() - t0 < 40
+    finally:  # none left behind if not (they would hold this process's output open for a minute)
+        for pid in workers:
+            if not gone(pid):
+                os.kill(pid, signal.SIGKILL)
 
 
 def test_a_helper_that_dies_is_reported_not_waited_for(tmp_path, monkeypatch):
