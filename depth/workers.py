@@ -6,10 +6,11 @@ processes. They are forked: a task is a closure over the parent's image, masks a
 which the workers inherit without pickling; only task indices and results cross the pipes.
 
 `fork_helper` forks a process at once that imports modules while this one goes on, then runs one task
-on what this process sends it: in a fresh process, `reconstruct` forks it before it detects the cubes, and
-the helper imports scipy's modules and the estimators' on the other core meanwhile (in a thread here, the
-import held the GIL against the detection: 0.3–0.5 s of a 2048×1536 image's 2.6–3.2 s), then outlines and
-estimates the faces. `import_in_background` imports modules in a thread, where no helper can be forked.
+on what this process sends it: on its first call in a process, `reconstruct` forks it before it detects the
+cubes, and the helper imports scipy's modules and the estimators' on the other core meanwhile (in a thread
+here, the import held the GIL against the detection: 0.3–0.5 s of a 2048×1536 image's 2.6–3.2 s), then
+outlines and estimates the faces. `import_in_background` imports modules in a thread: where no helper can
+be forked, and on `reconstruct`'s second call.
 """
 
 from __future__ import annotations
@@ -147,6 +148,7 @@ class Helper:
                 try:
                     kind, *rest = self._conn.recv()
                 except EOFError:
+                    self._process.join(timeout=1.0)
                     raise RuntimeError(f"the helper process ended without a result "
                                        f"(exit code {self._process.exitcode})") from None
                 if kind == "progress":
