@@ -34,18 +34,18 @@ root, scenes, repeats = sys.argv[1], [int(s) for s in sys.argv[2].split(",")], i
 sys.path.insert(0, root)
 from bench.bench_lighting import FLOOR_N, FLOOR_SEED, floor_render, greyed
 from bench.scenes import make_scenes
-import importlib
+import contextlib, importlib
 from depth.reconstruct import reconstruct
 from raytrace.render import keep_freed_memory
 keep_freed_memory()
-try:  # the estimators' modules here, as a process that has reconstructed before has them (since 68, a
-    # process's first call imports them in a helper process, its second beside the detection)
+# the estimators' modules here, as a process that has reconstructed before has them (since 68, a process's
+# first call imports them in a helper process, its second beside the detection); in a revision without
+# these names, its first, untimed call imports them
+with contextlib.suppress(ImportError):
     from depth.estimate import SOLVER_MODULES
     from depth.measure import IMAGE_MODULES
     for name in IMAGE_MODULES + SOLVER_MODULES:
         importlib.import_module(name)
-except ImportError:  # an older revision: its first, untimed call imports them
-    pass
 made = make_scenes(FLOOR_N, FLOOR_SEED)
 out = {}
 for index in scenes:

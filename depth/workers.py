@@ -15,6 +15,7 @@ be forked, and on `reconstruct`'s second call.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import multiprocessing
 import os
@@ -195,15 +196,14 @@ def _helper_main(conn, task, modules) -> None:
         result = ("result", task(payload, lambda *args: conn.send(("progress",) + args)))
     except BaseException as exc:  # noqa: BLE001 - raised again in the parent
         result = ("error", exc)
+    gone = (BrokenPipeError, ConnectionResetError)  # the parent has gone (an interrupt): nobody to tell
     try:
-        try:
-            conn.send(result)
-        except (BrokenPipeError, ConnectionResetError):  # the parent has gone (an interrupt): nobody to tell
-            return
-        except Exception as exc:  # an unpicklable result or exception: its message
-            conn.send(("error", RuntimeError(f"{type(exc).__name__}: {exc} (sending the helper's {result[0]})")))
-    except (BrokenPipeError, ConnectionResetError):
+        conn.send(result)
+    except gone:
         return
+    except Exception as exc:  # an unpicklable result or exception (pickled before anything is sent): its message
+        with contextlib.suppress(*gone):
+            conn.send(("error", RuntimeError(f"{type(exc).__name__}: {exc} (sending the helper's {result[0]})")))
     conn.close()
 
 
@@ -213,10 +213,8 @@ def _own_group(pid: int) -> None:
     (`Helper.close`). (Interrupted with the rest, the helper printed an import's traceback, or was ended
     before its workers, which then waited for it for ever.) Called by both processes, so that whichever
     runs first does it."""
-    try:
+    with contextlib.suppress(OSError):  # already done by the other side, or the helper has ended
         os.setpgid(pid, pid)
-    except OSError:  # already done by the other side, or the helper has ended
-        pass
 
 
 def fork_helper(task, modules) -> Helper | None:
