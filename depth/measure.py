@@ -509,6 +509,160 @@ def _pockets_cut(rgb: np.ndarray, near: np.ndarray, search: np.ndarray, step: fl
     return out
 
 
+BAY_RADIUS_PX = 30
+"""Radius (px) of the disc that `_bays_continued` opens the background with: the parts of the background the
+opening removes, narrower than twice this, are its bays. The objects crossing a horizon that it was
+measured on (holdout renders) are 25–51 px wide."""
+
+BAY_MIN_AREA = 200
+"""Least pixels of a bay for `_bays_continued` to take it for part of an object."""
+
+BAY_FILL = 0.6
+"""Least share of its bounding box that a bay must fill for `_bays_continued`: an object's face is a band
+between two straight sides (0.83–1.0 on the holdouts), a horizon's cusp between two arcs (0.3–0.5) is not,
+nor is a wedge that the disc leaves between two objects."""
+
+BAY_OTHER_SHARE = 0.5
+"""Least share of the ring 4–8 px about a bay that must be background of another colour than the bay's (by
+more than `ENCLOSING_EDGE_CONTRAST`'s weak step) for `_bays_continued`: the bay's sides and end stand before
+the other background (0.80–0.85 for the objects crossing a horizon on the holdouts). The background
+between two objects borders them, not background."""
+
+BAY_MOUTH_SHARE = 0.05
+"""Least share of that ring that must be background of the bay's own colour for `_bays_continued`: the
+mouth through which the bay opens into its background without a step (0.13–0.18 for the objects crossing a
+horizon on the holdouts). A cast shadow running to the mirror's edge differs from the background all round
+(0.00): it is no bay."""
+
+BAY_MOUTH_ROWS = 3
+"""Rows beyond a bay's mouth that `_bays_continued` leaves out of the change point of the object's run: they
+mix the two backgrounds along the horizon, as the edges' band is thick (in one JPEG holdout image these rows
+alone, 19 of 255 darker than the floor, made the change point, and the object was cut to the bay and 2 rows:
+a cube 21 mm across was read from it where one of 56 mm stood)."""
+
+RUN_SIGMAS = 5.0
+"""How many standard deviations of its row-to-row noise the colour difference between an object's run
+beyond a bay's mouth and the background beside it must add up to (`_run_end`) for `_bays_continued`."""
+
+
+def _run_end(diff: np.ndarray) -> tuple[int, np.ndarray, float]:
+    """(end, level, sigmas) of the run in the rows of `diff` ((L, C), L >= 10: per row, an object's mean colour
+    minus the background's beside it): the change point `end` (1 <= end <= L − 5) that explains the most of
+    the sum of squares as one level over the rows before it and none after (the maximum of |Σ_{i<end}
+    diff_i|² / end), the `level` (C,) before it, and how many standard deviations of the rows after it (their
+    variance, averaged over the channels) its sum adds up to (infinite where they are the same to the last
+    bit, as in a renderer's clean image, and the level is not zero)."""
+    sums = np.cumsum(diff, axis=0)
+    explained = (sums ** 2).sum(axis=1) / np.arange(1, len(diff) + 1)
+    end = int(np.argmax(explained[: len(diff) - 5])) + 1
+    noise = float(np.mean(np.var(diff[end:], axis=0)))
+    if noise > 0:
+        sigmas = float(np.sqrt(explained[end - 1] / noise))
+    else:  # rows without noise after it (a renderer's clean image): any level there is the run's
+        sigmas = np.inf if explained[end - 1] > 0 else 0.0
+    return end, sums[end - 1] / end, sigmas
+
+
+def _bays_continued(rgb: np.ndarray, near: np.ndarray, search: np.ndarray) -> np.ndarray:
+    """`near` (`_enclosed`'s background: the regions between edges that reach the mirror's edge) less each
+    object that stands across the boundary of two backgrounds with the colour of one of them.
+
+    An object before a sky and a floor meets both along the horizon. Where it has the floor's colour, its
+    part before the sky is outlined by edges on three sides but its part before the floor is not, and the
+    floor floods it through the gap: the object is a bay of the floor, and was not found (holdout 8080 s7/0,
+    a grey cube 37 × 207 px whose lower part is 4 of 255 darker than the floor, with a pixel noise of 5).
+    The bays are the parts of the background that an opening by a disc of `BAY_RADIUS_PX` removes. A bay is
+    part of such an object where it is upright (twice as tall as wide: the mirror's axis upright in the
+    image, as an XSlit images the object's upright edges as lines), holds `BAY_MIN_AREA` pixels filling
+    `BAY_FILL` of its box, and the ring 4–8 px about it is background of another colour for
+    `BAY_OTHER_SHARE` of it and of its own colour, at the mouth, for `BAY_MOUTH_SHARE`. Beyond the mouth (and
+    its first `BAY_MOUTH_ROWS` rows) the object runs on between its two sides, lines fitted to the bay's,
+    for as long as the mean colour between them leaves that of the background beside them (3–9 px out),
+    row by row, up to where its strip meets something other than background: the run ends at that
+    difference's change point (`_run_end`). It is kept where it adds up to `RUN_SIGMAS` of the rows' noise
+    after it and its brightness (its level's mean over the channels) leaves the background's by the faint
+    step `FAINT_EDGE_CONTRAST`[0], the faintest at which a grey face's sides are looked for: holdout 9090
+    grey s2/3, whose lower part differs from the floor in hue alone (R +3.7, G +2.7, B −0.6 of 255: 1.9 in
+    brightness), was outlined 13 px off at its bottom and came out 135 % off. The bay and its run (between
+    the sides widened by the edges' 2 px) are taken out of the background; a bay whose object does not run
+    on so is left in it."""
+    r = BAY_RADIUS_PX
+    inner = cv2.distanceTransform((near | ~search).view(np.uint8), cv2.DIST_L2, 5) > r
+    opened = cv2.distanceTransform((~inner).view(np.uint8), cv2.DIST_L2, 5) <= r
+    bays = near & ~opened
+    n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(bays.view(np.uint8), connectivity=4)
+    thick = np.zeros(n_lab, dtype=bool)
+    thick[np.unique(labels[cv2.erode(bays.view(np.uint8), np.ones((5, 5), np.uint8)).view(bool)])] = True
+    _, _, w, h, area = stats.T
+    keep = thick & (area >= BAY_MIN_AREA) & (h >= 2 * w) & (area >= BAY_FILL * w * h)
+    keep[0] = False
+    out = near
+    height, width = near.shape
+    for lab in np.flatnonzero(keep):
+        x0, y0, w0, h0 = (int(v) for v in stats[lab, :4])
+        win = (slice(max(y0 - 8, 0), y0 + h0 + 8), slice(max(x0 - 8, 0), x0 + w0 + 8))
+        bay = labels[win] == lab
+        differs = np.abs(rgb[win] - np.median(rgb[win][bay], axis=0)).max(axis=2) > ENCLOSING_EDGE_CONTRAST[0]
+        b8 = bay.view(np.uint8)
+        ring = (cv2.dilate(b8, np.ones((17, 17), np.uint8)) > cv2.dilate(b8, np.ones((9, 9), np.uint8))) & search[win]
+        n_ring = max(np.count_nonzero(ring), 1)
+        if (np.count_nonzero(ring & near[win] & differs) < BAY_OTHER_SHARE * n_ring
+                or np.count_nonzero(ring & near[win] & ~differs) < BAY_MOUTH_SHARE * n_ring):
+            continue
+        mouth = cv2.dilate(b8, np.ones((3, 3), np.uint8)).view(bool) & near[win] & ~bay
+        down = np.nonzero(mouth)[0].mean() > np.nonzero(bay)[0].mean()
+        # the bay's sides as lines col = a·row + b (its 3 end rows left out), in the window's rows and columns
+        rows = np.arange(y0 - win[0].start + 3, y0 - win[0].start + h0 - 3)
+        if len(rows) < 4:
+            continue
+        in_rows = bay[rows]
+        first, last = np.argmax(in_rows, axis=1), bay.shape[1] - 1 - np.argmax(in_rows[:, ::-1], axis=1)
+        fit_l = np.polyfit(rows + win[0].start, first + win[1].start, 1)
+        fit_r = np.polyfit(rows + win[0].start, last + win[1].start, 1)
+        # beyond the mouth, row by row: the mean colour between the sides, and 3–9 px beside them
+        v = (y0 + h0 if down else y0 - 1) + (1 if down else -1) * np.arange(BAY_MOUTH_ROWS, 6 * h0)
+        u_l, u_r = np.polyval(fit_l, v), np.polyval(fit_r, v)
+        s0, s1 = np.ceil(u_l).astype(int) + 1, np.floor(u_r).astype(int)
+        a0, b1 = np.floor(u_l).astype(int) - 8, np.ceil(u_r).astype(int) + 9
+        fits = (v >= 0) & (v < height) & (a0 >= 0) & (b1 <= width) & (s1 > s0)
+        n = int(np.argmin(fits)) if not fits.all() else len(v)
+        if n < 10:
+            continue
+        v, s0, s1, a0, b1 = v[:n], s0[:n], s1[:n], a0[:n], b1[:n]
+        c0 = int(a0.min())
+        at = np.arange(n)[:, None]
+
+        def sums(plane):  # (n, cols + 1, …) running sums along each row from column c0
+            run = np.cumsum(plane[v, c0:int(b1.max())], axis=1, dtype=np.float64)
+            return np.concatenate([np.zeros_like(run[:, :1]), run], axis=1)
+
+        def total(run, lo, hi):
+            return run[at, (hi - c0)[:, None]][:, 0] - run[at, (lo - c0)[:, None]][:, 0]
+
+        colour, background, mirror = sums(rgb), sums(near), sums(search)
+        # the run stops where its strip meets something other than background or its flanks leave the mirror
+        clear = (total(background, s0, s1) == s1 - s0) & (total(mirror, a0, b1) == b1 - a0)
+        n = int(np.argmin(clear)) if not clear.all() else n
+        if n < 10:
+            continue
+        strip = total(colour, s0, s1)[:n] / (s1 - s0)[:n, None]
+        beside = ((total(colour, a0, a0 + 6) + total(colour, b1 - 6, b1)) / 12.0)[:n]
+        end, level, sigmas = _run_end(strip - beside)
+        if sigmas < RUN_SIGMAS or abs(float(np.mean(level))) < FAINT_EDGE_CONTRAST[0]:
+            continue
+        # the object: the bay and its run, between the sides widened by the edges' 2 px
+        far, end_row = (y0 if down else y0 + h0 - 1), int(v[end - 1])
+        rr = np.arange(min(far, end_row), max(far, end_row) + 1)
+        lo = np.clip(np.ceil(np.polyval(fit_l, rr) - 2.0).astype(int), 0, width - 1)
+        hi = np.clip(np.floor(np.polyval(fit_r, rr) + 2.0).astype(int) + 1, lo + 1, width)
+        cc = np.arange(lo.min(), hi.max())
+        if out is near:
+            out = near.copy()
+        out[win] &= ~bay
+        out[rr[0]:rr[-1] + 1, cc[0]:cc[-1] + 1] &= ~((cc >= lo[:, None]) & (cc < hi[:, None]))
+    return out
+
+
 def convex_filled(image: np.ndarray, mirror_mask: np.ndarray, detection: CubeDetection, *,
                   min_face_contrast: float = 0.03, compressed: bool = False) -> CubeDetection | None:
     """An achromatic `detection` whose blob is replaced by its convex hull within the mirror region, its faces
@@ -539,7 +693,7 @@ def convex_filled(image: np.ndarray, mirror_mask: np.ndarray, detection: CubeDet
 
 def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_share: float,
               contrast: tuple[float, float] = ENCLOSING_EDGE_CONTRAST, close_px: int = 3, sigma: float = 1.0,
-              gradient: tuple[np.ndarray, np.ndarray] | None = None):
+              gradient: tuple[np.ndarray, np.ndarray] | None = None, bays: bool = False):
     """(background pixels, seed pixels, edge pixels) of a background of no one colour, else None.
 
     A sky reflected in a cylinder shades smoothly across the mirror and meets the floor at a
@@ -549,7 +703,9 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
     to close gaps at corners; the background is every region between them that reaches the edge of
     the mirror region (an object reaching it would be cut anyway), kept only where it holds
     `background_share` of `rest` (a checkered ground's cells are enclosed each). Every enclosed
-    pixel is a seed. `gradient`: `_channel_gradient(rgb, sigma)`, where the caller has it already."""
+    pixel is a seed. `gradient`: `_channel_gradient(rgb, sigma)`, where the caller has it already. With
+    `bays`, an object of one background's colour standing across its boundary with another (a grey cube
+    before the sky and the floor), which the background floods, is taken out of it (`_bays_continued`)."""
     dx, dy = _channel_gradient(rgb, sigma) if gradient is None else gradient
     weak, strong = (3.2 * 255.0 * c for c in contrast)
     edges = _bridged_canny(dx, dy, weak, strong)
@@ -559,6 +715,8 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
     if np.mean(near[rest]) < background_share:
         return None
     near = _pockets_cut(rgb, near, search, contrast[0])
+    if bays:
+        near = _bays_continued(rgb, near, search)
     # The 3 px band of each edge beside an enclosed region: a pixel there is the region's where its
     # colour leaves the nearest background pixel's (3 × 3 mean) by more than the background's noise
     # band (as `_uniform_background`'s), so that a region ends where its colour does, not 1–2 px
@@ -651,7 +809,7 @@ def _achromatic_regions(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarra
     found = _uniform_background(rgb, search, rest, min_area, background_share)
     if found is None or found is _SHADES:
         shades = found is _SHADES
-        found = _enclosed(rgb, search, rest, background_share)
+        found = _enclosed(rgb, search, rest, background_share, bays=True)
         if found is None and shades:  # no edges enclose regions there: the one colour, shading and all
             found = _uniform_background(rgb, search, rest, min_area, background_share, allow_shading=True)
     if found is None:
