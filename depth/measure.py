@@ -611,7 +611,7 @@ def _bays_continued(rgb: np.ndarray, near: np.ndarray, search: np.ndarray) -> np
             continue
         mouth = cv2.dilate(b8, np.ones((3, 3), np.uint8)).view(bool) & near[win] & ~bay
         down = np.nonzero(mouth)[0].mean() > np.nonzero(bay)[0].mean()
-        # the bay's sides as lines col = a·row + b (its 3 end rows left out), in the window's rows and columns
+        # the bay's sides as lines col = a·row + b (its 3 end rows left out), in the rows and columns of `near`
         rows = np.arange(y0 - win[0].start + 3, y0 - win[0].start + h0 - 3)
         if len(rows) < 4:
             continue
