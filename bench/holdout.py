@@ -1,4 +1,4 @@
-"""Held-out renders: `python -m bench.holdout SEED [--grey] [--jpeg]` (SEED 8080, 9090, 7070, 6060, 5050 or 4040 as in bench/README.md).
+"""Held-out renders: `python -m bench.holdout SEED [--grey] [--jpeg]` (SEED 8080, 9090, 7070, 6060, 5050, 4040 or 3030 as in bench/README.md).
 
 Eight scenes no bench tunes on (`make_scenes(8, seed=SEED)`), rendered by Mitsuba 3 (16 spp) standing
 on a floor (albedo drawn per scene) under the lighting bench's sky map and a sun from a direction and
