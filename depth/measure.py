@@ -612,11 +612,9 @@ def _bays_continued(rgb: np.ndarray, near: np.ndarray, search: np.ndarray) -> np
         mouth = cv2.dilate(b8, np.ones((3, 3), np.uint8)).view(bool) & near[win] & ~bay
         down = np.nonzero(mouth)[0].mean() > np.nonzero(bay)[0].mean()
         # the bay's sides as lines col = a·row + b (its 3 end rows left out), in the rows and columns of `near`
-        rows = np.arange(y0 - win[0].start + 3, y0 - win[0].start + h0 - 3)
+        rows, first, last = (t[3:-3] for t in _row_extents(bay))
         if len(rows) < 4:
             continue
-        in_rows = bay[rows]
-        first, last = np.argmax(in_rows, axis=1), bay.shape[1] - 1 - np.argmax(in_rows[:, ::-1], axis=1)
         fit_l = np.polyfit(rows + win[0].start, first + win[1].start, 1)
         fit_r = np.polyfit(rows + win[0].start, last + win[1].start, 1)
         # beyond the mouth, row by row: the mean colour between the sides, and 3–9 px beside them

@@ -52,6 +52,10 @@ def available_cores() -> int:
         return os.cpu_count() or 1
 
 
+def _can_fork() -> bool:
+    return not _IN_WORKER and "fork" in multiprocessing.get_all_start_methods()
+
+
 def fork_map(task, n: int, workers: int | None = None, cost=None, progress=None) -> list:
     """[task(0), ..., task(n − 1)], the tasks run in forked worker processes.
 
@@ -75,8 +79,7 @@ def fork_map(task, n: int, workers: int | None = None, cost=None, progress=None)
         raise ValueError(f"workers: expected an integer >= 1, got {workers}")
     workers = min(workers, n)
     order = sorted(range(n), key=lambda i: -cost[i]) if cost is not None else list(range(n))
-    parallel = (workers > 1 and not _IN_WORKER and "fork" in multiprocessing.get_all_start_methods()
-                and _LOCK.acquire(blocking=False))
+    parallel = workers > 1 and _can_fork() and _LOCK.acquire(blocking=False)
     if not parallel:
         out = [None] * n
         for done, i in enumerate(order, 1):
@@ -128,10 +131,6 @@ def import_in_background(names) -> Callable[[], None]:
     thread = threading.Thread(target=run, name="import_in_background", daemon=True)
     thread.start()
     return thread.join
-
-
-def _can_fork() -> bool:
-    return not _IN_WORKER and "fork" in multiprocessing.get_all_start_methods()
 
 
 class Helper:
