@@ -2494,6 +2494,16 @@ _ESF_STRIP_NOISE = 1.0  # a strip differs from the face and the outside by this 
 # the 48 holdout images, every other strip that passed the gain, contrast, width and position tests lay
 # 1.9 σ or more from both.
 _ESF_DEBUG = False
+# The pixel noise the strip tests read is the pooled scatter about the bin medians; that is the smoother
+# side's where the face and the outside differ in noise, and a path tracer's face before a noiseless sky
+# or wall leaves half the band's deviations near 0. Holdout 3030 s5/0 (a white face 12 px wide, its
+# pixels ±0.2 of face − outside): the pooled σ was 0.036, and the face's last 2.6 px, brighter on four
+# of its nine columns, passed as a top face that is not there (the face read 2.6 px short, 29 % off at
+# −12.6 σ). So the noise is at least the face's own scatter, taken over the band's pixels at least
+# this far inside the side (where neither the ramp nor a strip beyond the edge reaches), about their
+# median, where there are `_ESF_FACE_NOISE_MIN` of them.
+_ESF_FACE_NOISE_PX = 2.0
+_ESF_FACE_NOISE_MIN = 10
 _ESF_SINGLE_PIXEL_PX = 1.2  # a strip found from one phase and narrower than this fills one pixel only
 _ESF_MIN_GAIN = 0.3  # the two-step model must remove this fraction of the one-step misfit
 # In a blurred image (`BLURRED_RAMP_PX`) the blur's tails read as a strip of a colour between the
@@ -2722,6 +2732,11 @@ def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast
     # robust pixel scatter about the bin medians: the noise variance of one pixel's (f, r)
     dev = np.abs(y - ybar[inv[idx]])
     noise_var = float(np.sum((1.4826 * np.median(dev, axis=0)) ** 2))
+    # ... and not below the face's own scatter (`_ESF_FACE_NOISE_PX`)
+    inside = d <= -_ESF_FACE_NOISE_PX
+    if np.count_nonzero(inside) >= _ESF_FACE_NOISE_MIN:
+        dev_face = np.abs(y[inside] - np.median(y[inside], axis=0))
+        noise_var = max(noise_var, float(np.sum((1.4826 * np.median(dev_face, axis=0)) ** 2)))
     # not below the 8-bit quantisation (≈ 0.002 of linear value at mid tones, per channel)
     noise_var = max(noise_var, 4 * 0.002**2 / float(np.median(dd)))
     wts = cnt
