@@ -1110,6 +1110,27 @@ def test_the_turn_profile_walks_past_one_costly_turn():
     assert found.depth_std < 0.5 * depth
 
 
+MITSUBA_CYAN_TOPPED = Path(__file__).resolve().parents[1] / "data" / "mitsuba_cyan_floor2_s0_0.png"
+"""A 52×112 crop, from (286, 320), of a Mitsuba 3 render (16 spp; the lighting bench's floor scenes under
+the second suns, `python -m bench lighting`, scene 0, cube 0): a cyan cube 4.45 cm across, 1.03 m from the
+mirror axis, facing it, its front face 9 px wide under a top face 3.2 px tall merged with it in the
+outline."""
+CYAN_TOPPED_CROP = (MITSUBA_CYAN_TOPPED, (52, 112), 1657.587, (511.5 - 286, 383.5 - 320), (0.0, 0.03795, 0.48878),
+                    0.11248, 0.54133)  # `_crop_cube`'s arguments
+CYAN_TOPPED_CENTRE = (-0.81779, -0.05754, 0.62544)  # the true cube's centre
+
+
+def test_the_sigma_covers_the_other_reading_of_a_top_face_that_fits_the_edges_nearly_as_well():
+    """The face above read with its top face merged and read without fit the edges at 0.109 and 0.110 px
+    rms, the second's centre 21 % farther. The merged reading is kept (the silhouette agrees), 16.8 % off;
+    its σ alone put it at −2.7 σ. Weighted by the odds of the two fits, the σ must cover the depth within
+    2 σ and stay a bound worth having (under half the depth)."""
+    found, mirror = _crop_cube(*CYAN_TOPPED_CROP)
+    depth = float(mirror.distance_to_axis(np.array([CYAN_TOPPED_CENTRE]))[0])
+    assert abs(found.depth - depth) < 2.0 * found.depth_std
+    assert found.depth_std < 0.5 * depth
+
+
 def test_a_face_fitted_both_ways_gets_the_complete_sigma_of_the_reading_kept(rig):
     """A thin gap is fitted both ways and one reading kept (`estimate_face`); the σ's turn profiles run
     for that one alone (`_exact(..., defer=True)`). The estimate and its σ must be those `_exact` gives
