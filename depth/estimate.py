@@ -1150,7 +1150,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
 
     profile_log = []  # (pose, pixel scales) of the turn profile's poses (`profiled`)
     overruled = None  # the pose of the reading the edges preferred, where the silhouette chose the other
-    rival = None  # (pose, weight) of the reading of a top or bottom face the edges chose against by a little
+    rival = None  # (pose, share) of the other reading of a top or bottom face, its share by the odds of its fit
     weight_start = weight
     result = fit()
     if result is not None and tb_candidates:
