@@ -2729,14 +2729,14 @@ def _esf_side_mode(linear, lines, quads, corners, i, inner, margin, min_contrast
     # bin medians: a background texture changing between the station and the pixel spoils a few
     # pixels of a bin, not its median
     ybar = np.stack([_bin_medians(idx, y[:, j], cnt) for j in range(4)], axis=1)
-    # robust pixel scatter about the bin medians: the noise variance of one pixel's (f, r)
-    dev = np.abs(y - ybar[inv[idx]])
-    noise_var = float(np.sum((1.4826 * np.median(dev, axis=0)) ** 2))
-    # ... and not below the face's own scatter (`_ESF_FACE_NOISE_PX`)
+    def robust_var(dev):  # the noise variance of one pixel's (f, r) from its absolute deviations (K, 4)
+        return float(np.sum((1.4826 * np.median(dev, axis=0)) ** 2))
+
+    # robust pixel scatter about the bin medians, and not below the face's own (`_ESF_FACE_NOISE_PX`)
+    noise_var = robust_var(np.abs(y - ybar[inv[idx]]))
     inside = d <= -_ESF_FACE_NOISE_PX
     if np.count_nonzero(inside) >= _ESF_FACE_NOISE_MIN:
-        dev_face = np.abs(y[inside] - np.median(y[inside], axis=0))
-        noise_var = max(noise_var, float(np.sum((1.4826 * np.median(dev_face, axis=0)) ** 2)))
+        noise_var = max(noise_var, robust_var(np.abs(y[inside] - np.median(y[inside], axis=0))))
     # not below the 8-bit quantisation (≈ 0.002 of linear value at mid tones, per channel)
     noise_var = max(noise_var, 4 * 0.002**2 / float(np.median(dd)))
     wts = cnt
