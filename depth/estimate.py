@@ -180,6 +180,16 @@ typical side is off by 0.02 px (robust σ), but 10 % of sides by more than 0.18 
 (noise). The value, from earlier 4-spp renders (robust σ 0.14 px), is kept because it covers that
 tail: on the reconstruct bench 93 % of clean-image depth errors fall within 1 σ, 97 % within 2 σ."""
 
+SIDE_TILT_SHARE = 0.25
+"""`exact`'s σ takes each side as tilted about its middle too, its ends moved ±√(share)·b apart from its
+common offset b (`EDGE_BIAS_PX` and the rest, or the misfit where larger): each side's slope is read off
+as well as its place, and a narrow face's turn, and through it its depth, hangs on the slopes of its short
+top and bottom. `python -m bench edges`' sides fitted as offset + tilt·τ (τ = ±1 at the ends): at the
+quantile where |offset| reaches b (82–91 %), |tilt| on sides under 20 px is 0.44–0.65 of b (clean 0.51,
+noise 0.44, JPEG 0.65; 0.30–0.37 over all sides), so √share = ½. On the test rig, with each side offset by
+N(0, b) and tilted by N(0, b/2), a face 7–14 px wide came out with median |error|/σ 0.62–0.71 (1.19–1.85
+without the tilt)."""
+
 EDGE_BIAS_PX_COMPRESSED = 0.18
 """The same for JPEG images (`FaceMeasurement.edge_bias_px`, which `depth.reconstruct` sets). Held-out
 JPEG sides: robust σ 0.03 px, 90th percentile 0.64 px; bench coverage 59 / 76 % within 1 / 2 σ."""
@@ -956,20 +966,32 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         pooled = sigma2 * (je.T @ je) + jp.T @ jp
         meat = jp.T @ jp
         band = unresolved_bands(x)
+        band_meat = np.zeros_like(meat)  # the unresolved bands' part of `meat`
         for side in range(6):
             on_side = sid == side
             j_side = je[on_side]
             g = j_side.sum(axis=0)
             pooled += bias2 * np.outer(g, g)
+            if np.count_nonzero(on_side) >= 2:
+                # A tilt of the side about its points' mean, its ends moved ±√share·b (`SIDE_TILT_SHARE`):
+                # holdout 3030 JPEG s3/4, a face 9 px wide whose turn hangs on its short top and bottom, was
+                # 30 % near at −8.5 σ without this term.
+                along = pix[on_side, 0] if side in (2, 3) else pix[on_side, 1]
+                tau = (along - along.mean()) / max(np.ptp(along) / 2.0, 1e-9)
+                g_tilt = tau @ j_side
+                pooled += SIDE_TILT_SHARE * bias2 * np.outer(g_tilt, g_tilt)
+                meat += SIDE_TILT_SHARE * bias2 * np.outer(g_tilt, g_tilt)
             if on_side.any():
                 own = float(np.mean(r[:n][on_side] ** 2))  # this side's mean squared misfit (pixels²)
                 meat += max(sigma2, own * n / max(n - n_params, 1)) * (j_side.T @ j_side)
                 meat += (max(bias2, own) + band[side] ** 2) * np.outer(g, g)
+                band_meat += band[side] ** 2 * np.outer(g, g)
         # how much the side offsets widen the turn's variance over the point scatter's (the first
         # parameter is the turn): the scale at which costs along the turn profile are read
         naive = sigma2 * jtj_inv[0, 0]
         inflation = (jtj_inv @ pooled @ jtj_inv)[0, 0] / naive if naive > 0 else 1.0
-        return jtj_inv @ meat @ jtj_inv, {"sigma2": sigma2, "inflation": float(max(inflation, 1.0))}
+        return jtj_inv @ meat @ jtj_inv, {"sigma2": sigma2, "inflation": float(max(inflation, 1.0)),
+                                          "band_cov": jtj_inv @ band_meat @ jtj_inv}
 
     # The front face is the cube face nearest to facing the mirror: within 54.7° of it.
     lim = np.deg2rad(54.7)
@@ -1123,8 +1145,10 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             # lighting bench: −7° for −13°, 22 % off). Profile the turn, each pose at its own scales.
             stage1 = profiled(x_best) or stage1
             x_best, sol1 = stage1
-        cov = np.zeros((7, 7))
+        cov, band_cov = np.zeros((7, 7)), np.zeros((7, 7))
         cov[np.ix_(upright, upright)], scales = covariance(sol1.jac, sol1.fun, 5, x_best)
+        band_cov[np.ix_(upright, upright)] = scales["band_cov"]
+        scales["band_cov"] = band_cov
         log = list(profile_log) if len(merged) > 1 else []
         # Stage 2, any orientation, only when the upright face does not explain the edges (rms above
         # UPRIGHT_MISFIT_PX, many times the sub-pixel edge scatter), kept only when it halves the misfit:
@@ -1266,8 +1290,14 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             lik = np.exp(-(cost - cost.min()) / lik_scale)
             spread = np.array([derived(x) for x, _ in poses]) - f0
             var = lik @ spread ** 2 / lik.sum()
-            std = {"z": max(std["z"], float(np.sqrt(var[4]))), "size": max(std["size"], float(np.sqrt(var[3]))),
-                   "center": max(std["center"], float(np.sqrt(np.sum(var[:3]))))}
+            profiled_std = {"z": float(np.sqrt(var[4])), "size": float(np.sqrt(var[3])),
+                            "center": float(np.sqrt(np.sum(var[:3])))}
+            # The profile moves the pose against edge points held where they were read; a top or bottom
+            # side read anywhere across an unresolved band (`unresolved_bands`) is an offset of those
+            # points, so its part of the first-order σ adds to the profile's spread, not under it.
+            band = propagated(x_best, scales["band_cov"])
+            std = {key: float(np.hypot(max(np.sqrt(max(std[key] ** 2 - band[key] ** 2, 0.0)), profiled_std[key]),
+                                       band[key])) for key in std}
         if upright_reading is not None:
             x_upright, cov_upright, rms_upright, still_misfits = upright_reading
             if rms_upright <= MAX_EDGE_MISFIT_PX:
