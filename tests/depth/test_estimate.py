@@ -298,7 +298,8 @@ def test_the_sigma_covers_a_top_side_read_anywhere_across_a_thin_top_face(rig, m
     slope = (depth_and_sigma(top_moved(-0.2), 0.0)[0] - depth_and_sigma(top_moved(0.2), 0.0)[0]) / 0.4
     assert sigma == pytest.approx(np.hypot(sigma_without, slope * band / np.sqrt(3.0)), rel=0.1)
     # the band's own part, isolated: it adds to the turn profile's spread where that sets the σ (at 0.6 m,
-    # since the sides' tilts widened the profile's likelihood scale, it was first lost under the profile)
+    # once the sides' tilts widened the profile's likelihood scale, 0.018 m of its 0.022 m was left under the
+    # profile's spread)
     assert np.sqrt(sigma ** 2 - sigma_without ** 2) == pytest.approx(slope * band / np.sqrt(3.0), rel=0.1)
     # read as a thin strip beside the side, the band is resolved: no term
     strip = dataclasses.replace(meas, strip_px=(0.0, 0.0, band, 0.0))
