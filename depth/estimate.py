@@ -178,7 +178,8 @@ darkening the edge, anti-aliasing); treating the points as independent would mak
 `python -m bench edges` measures the per-side offsets on held-out renders: on 16-spp renders the
 typical side is off by 0.02 px (robust σ), but 10 % of sides by more than 0.18 px (clean) or 0.24 px
 (noise). The value, from earlier 4-spp renders (robust σ 0.14 px), is kept because it covers that
-tail: on the reconstruct bench 93 % of clean-image depth errors fall within 1 σ, 97 % within 2 σ."""
+tail: on the reconstruct bench 93 % of clean-image depth errors fell within 1 σ, 97 % within 2 σ (when it was
+set; 97 / 100 % in the seventieth session, 99 / 100 % since the seventy-first's side tilts, `SIDE_TILT_SHARE`)."""
 
 SIDE_TILT_SHARE = 0.25
 """`exact`'s σ takes each side as tilted about its middle too, its ends moved ±√(share)·b apart from its
