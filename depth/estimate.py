@@ -972,7 +972,8 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             on_side = sid == side
             j_side = je[on_side]
             g = j_side.sum(axis=0)
-            pooled += bias2 * np.outer(g, g)
+            gg = np.outer(g, g)
+            pooled += bias2 * gg
             if np.count_nonzero(on_side) >= 2:
                 # A tilt of the side about its points' mean, its ends moved ±√share·b (`SIDE_TILT_SHARE`):
                 # holdout 3030 JPEG s3/4, a face 9 px wide whose turn hangs on its short top and bottom, was
@@ -980,13 +981,14 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
                 along = pix[on_side, 0] if side in (2, 3) else pix[on_side, 1]
                 tau = (along - along.mean()) / max(np.ptp(along) / 2.0, 1e-9)
                 g_tilt = tau @ j_side
-                pooled += SIDE_TILT_SHARE * bias2 * np.outer(g_tilt, g_tilt)
-                meat += SIDE_TILT_SHARE * bias2 * np.outer(g_tilt, g_tilt)
+                tilt = SIDE_TILT_SHARE * bias2 * np.outer(g_tilt, g_tilt)
+                pooled += tilt
+                meat += tilt
             if on_side.any():
                 own = float(np.mean(r[:n][on_side] ** 2))  # this side's mean squared misfit (pixels²)
                 meat += max(sigma2, own * n / max(n - n_params, 1)) * (j_side.T @ j_side)
-                meat += (max(bias2, own) + band[side] ** 2) * np.outer(g, g)
-                band_meat += band[side] ** 2 * np.outer(g, g)
+                meat += (max(bias2, own) + band[side] ** 2) * gg
+                band_meat += band[side] ** 2 * gg
         # how much the side offsets widen the turn's variance over the point scatter's (the first
         # parameter is the turn): the scale at which costs along the turn profile are read
         naive = sigma2 * jtj_inv[0, 0]
@@ -1322,14 +1324,14 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
                 # which a tilt follows: each σ covers half the two readings' difference, as for `overruled`
                 # below. A dark cube of an unseen JPEG render, crossing the horizon: tilted 38° (0.28 px
                 # against the upright 0.65 px), 59 % off, −17.6 σ.
-                std = covering_half(std, x_upright)
+                std = covering_mixture(std, x_upright, 0.5)
         if overruled is not None:
             # The edges preferred the other reading of a top or bottom face and the silhouette chose this
             # one; a top face as bright as the sky behind it fools the silhouette (no part of the blob,
             # it looks absent), so either reading may be the cube: each σ covers half their difference
             # (as an even mixture of the two would). Our render of a grey cube turned 15° under a sun from
             # above, the background as bright as its top face: 9.2 % off, −5.2 σ before.
-            std = covering_half(std, overruled)
+            std = covering_mixture(std, overruled, 0.5)
         if rival is not None:
             # This reading of a top or bottom face was kept over the other (merged or not), which fit the
             # edges nearly as well: each σ covers the mixture of the two, weighted by the odds of their
@@ -1338,11 +1340,6 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             # off at −2.7 σ; the other reading lay 21 % deeper.
             std = covering_mixture(std, *rival)
         return std
-
-    def covering_half(std, other):
-        """Each σ of `std` widened to cover half the difference from the reading at pose `other` (as an even
-        mixture of the two readings would)."""
-        return covering_mixture(std, other, 0.5)
 
     def covering_mixture(std, other, share):
         """Each σ of `std` widened as a mixture of this reading (1 − share) and the one at pose `other`
