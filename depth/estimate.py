@@ -763,7 +763,12 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         s = s0 * np.exp(xs[:, 6]) if cube_size is None else np.full(len(xs), cube_size)
         return (xs[:, :3], c, s) if np.ndim(x) == 2 else (xs[0, :3], c[0], float(s[0]))
 
-    back_idx = np.flatnonzero(is_back)
+    # the points come side by side, the front face's four sides first (sid < 4), then the back sides: each
+    # kind is a slice of them (views, where index arrays copied on every call)
+    n_front = int(np.count_nonzero(sid < 4))
+    back_idx = slice(n_front, len(sid))
+    has_back = n_front < len(sid)
+    side_sign = sign[sid]  # per point, the sign of its side
     # The faces merged with the front face: a side face beside each contour side (counted only where
     # seen). The measured outline is the boundary of their union; `contour` gives it.
     merged = [(_FRONT, None, 0.0)] + [(_FACES[sign[k] > 0], 1, sign[k]) for k in contour_sides]
@@ -777,30 +782,48 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     # the wider one even for sharp faces (a merged bottom face's far edge left a 0.33 px gap along its
     # curve): the merged reading is only tried, and kept where it explains the outline no worse. These
     # sides are `tb_candidates`, taken above with the others (`_gap_readings`).
-    front_idx = np.flatnonzero(sid < 4)
-    front_lr = sid[front_idx] < 2
-    front_sign = sign[sid[front_idx]]
+    front_idx = slice(0, n_front)
+    front_lr = is_lr[front_idx]
+    front_sign = side_sign[front_idx]
 
     def face_edges(faces):
-        """The edges of the given faces as `contour` reads them. Per edge (a vertex pair) and front-side
-        point: the edge's vertices' coordinates (in edge lengths) along the coordinate the point's line
-        fixes (a for left/right points, b for top/bottom ones) and the one it measures, (P, N) each (the
-        points along the last axis: numpy's loops then run over them, not over the few edges), and
-        their w (P, 1). Per side or top face: the slice of its 4 edges, its frame axis and its sign, for
-        the visibility test (the front face is always seen), and the points it may bound (N,). Each face
-        images as a convex quadrilateral, so a line's largest crossing of it is on an edge.
+        """The edges of the given faces as `contour` reads them; faces[0] is the front face, the others
+        merged with it. Per edge (a vertex pair) of the merged faces and front-side point: the edge's
+        vertices' coordinates (in edge lengths) along the coordinate the point's line fixes (a for
+        left/right points, b for top/bottom ones) and the one it measures, (P, N) each (the points along
+        the last axis: numpy's loops then run over them, not over the few edges), and their w (P, 1). Per
+        merged face: the slice of its edges, its frame axis and its sign, for the visibility test, and the
+        points it may bound (N,). Each face images as a convex quadrilateral, so a line's largest crossing
+        of it is on an edge.
+
+        The front face's edges (both vertices at w = 0, one of them shared with each merged face) do not
+        move with the rays and are always seen: per point, only the two crossing its line count, and
+        `contour` takes them in closed form from their start along the fixed coordinate and their run
+        (±1), "front_x0" and "front_run" (2, N): the first is the one whose measured coordinate lies
+        outward (+½ times the side's sign), the second the one inward. (With all four edges of the
+        front face in the (K, P, N) arrays, `contour` took 0.5 s of a 2048×1536 image's 1.8 s of `exact`.)
 
         A face beyond the opposite side never bounds a side: the front face's own edge lies between. A
         point whose line misses the front face (past a corner of the placed face) and crosses only such a
         face was read a whole face width off, and stayed so at the poses nearby, its pixel scale the far
         edge's (a JPEG face 40 % off at −14.6 σ: bench/README, sixtieth session)."""
-        pr = np.array([(f[i], f[(i + 1) % 4]) for f, _, _ in faces for i in range(4)])
         fixed = np.where(front_lr, _VERTS[:, 0:1], _VERTS[:, 1:2])  # (8, N)
         measured = np.where(front_lr, _VERTS[:, 1:2], _VERTS[:, 0:1])
-        seen = [(slice(4 * i, 4 * i + 4), a, sg, ~(((a == 1) == front_lr) & (front_sign != sg)))
-                for i, (_, a, sg) in enumerate(faces) if a is not None]
+        front = np.array([(faces[0][0][i], faces[0][0][(i + 1) % 4]) for i in range(4)])
+        run = fixed[front[:, 1]] - fixed[front[:, 0]]  # (4, N): 0 for the two edges along each point's line
+        outward = measured[front[:, 0]] * front_sign
+        cross = [np.argmax((run != 0) & (outward > 0), axis=0), np.argmax((run != 0) & (outward < 0), axis=0)]
+        cols = np.arange(n_front)
+        pr, seen = [], []
+        for f, a, sg in faces[1:]:
+            own = [(f[i], f[(i + 1) % 4]) for i in range(4) if _VERTS[f[i], 2] or _VERTS[f[(i + 1) % 4], 2]]
+            seen.append((slice(len(pr), len(pr) + len(own)), a, sg, ~(((a == 1) == front_lr) & (front_sign != sg))))
+            pr += own
+        pr = np.array(pr, dtype=np.intp).reshape(-1, 2)
         return {"x0": fixed[pr[:, 0]], "x1": fixed[pr[:, 1]], "y0": measured[pr[:, 0]], "y1": measured[pr[:, 1]],
-                "w0": _VERTS[pr[:, 0], 2:3], "w1": _VERTS[pr[:, 1], 2:3], "seen": seen}
+                "w0": _VERTS[pr[:, 0], 2:3], "w1": _VERTS[pr[:, 1], 2:3], "seen": seen,
+                "front_x0": np.stack([fixed[front[k, 0], cols] for k in cross]),
+                "front_run": np.stack([run[k, cols] for k in cross])}
 
     edges = face_edges(merged)
 
@@ -808,27 +831,35 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         """Per pose (K) and point (rays q, r: the points' own or those beside them): its measured
         coordinate minus where the model puts its edge (metres), (K, N)."""
         a, b = _face_coords(q, r, c, axes)
-        out = np.where(is_lr, b, a) - sign[sid] * s[:, None] / 2.0
-        if len(back_idx):  # back edges: on the side plane at w = −s
-            out[:, back_idx] = _side_plane_w(q[back_idx], r[back_idx], c, axes, sign[sid[back_idx]], s) + s[:, None]
+        along = np.where(is_lr, b, a)  # the coordinate each point's line measures
+        out = along - side_sign * s[:, None] / 2.0
+        if has_back:  # back edges: on the side plane at w = −s
+            out[:, back_idx] = _side_plane_w(q[back_idx], r[back_idx], c, axes, side_sign[back_idx], s) + s[:, None]
         if len(merged) > 1:
-            out[:, front_idx] = contour(r[front_idx], axes, s, a[:, front_idx], b[:, front_idx], out[:, front_idx])
+            line = np.where(is_lr[front_idx], a[:, front_idx], b[:, front_idx])  # the coordinate it fixes
+            out[:, front_idx] = contour(r[front_idx], axes, s, line, along[:, front_idx], out[:, front_idx])
         return out
 
-    def contour(r, axes, s, a, b, front):
-        """Residuals of front-side points against the outline of the front face united with the
-        faces merged with it. Each point's face is taken to image like its own neighbourhood: the
-        cube's vertices are carried along the point's ray onto the face plane, the union's extent
-        along the point's row (left/right) or column (top/bottom) is the largest crossing of a face's
-        edge, and the residual is the point's coordinate minus that extent. A point beyond
-        the union's span, or whose line crosses only a face beyond the opposite side, keeps its
-        front-edge residual. (Its divisions by zero are silenced by `_exact`'s
-        errstate: a context of its own on each call took 6 % of its time, line-profiled.)"""
+    def contour(r, axes, s, line, along, front):
+        """Residuals of front-side points (their rays' directions r; per pose, the coordinate each point's
+        line fixes and the one it measures, and its residual against the front face's own edge) against the
+        outline of the front face united with the faces merged with it. Each point's face is taken to image
+        like its own neighbourhood: the cube's vertices are carried along the point's ray onto the face
+        plane, the union's extent along the point's row (left/right) or column (top/bottom) is the largest
+        crossing of a face's edge, and the residual is the point's coordinate minus that extent. A point
+        beyond the union's span, or whose line crosses only a face beyond the opposite side, keeps its
+        front-edge residual. (Its divisions by zero are silenced by `_exact`'s errstate: a context of its
+        own on each call took 6 % of its time, line-profiled.)"""
         s1 = s[:, None]
+        # the front face's crossing (`face_edges`): s/2 outward where its outward edge crosses the line, else
+        # −s/2 where its inward one does, else none (−inf)
+        t_out, t_in = ((line - edges["front_x0"][k] * s1) / (edges["front_run"][k] * s1) for k in (0, 1))
+        half = 0.5 * s1
+        front_extent = np.where((t_out >= 0) & (t_out <= 1), half, np.where((t_in >= 0) & (t_in <= 1), -half, -np.inf))
         dn = axes[:, 2] @ r.T
         shift_a, shift_b = s1 * (axes[:, 0] @ r.T / dn), s1 * (axes[:, 1] @ r.T / dn)  # (K, N): a back vertex's move
-        # the projected vertices of each edge (K, P, N): x along the coordinate the point's line fixes
-        # (a for left/right points, b for top/bottom), y along the one measured
+        # the projected vertices of each merged face's edge (K, P, N): x along the coordinate the point's line
+        # fixes, y along the one measured
         xs, ys = np.where(front_lr, shift_a, shift_b)[:, None], np.where(front_lr, shift_b, shift_a)[:, None]
         s3 = s[:, None, None]
         x0 = edges["x0"] * s3
@@ -841,7 +872,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         y1 -= edges["w1"] * ys
         # where the line crosses each edge (t in [0, 1]), and the measured coordinate there
         x1 -= x0
-        t = np.where(front_lr, a, b)[:, None] - x0
+        t = line[:, None] - x0
         t /= x1
         y1 -= y0
         y1 *= t
@@ -856,8 +887,8 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             crossed[:, rows] &= ((shift > 0 if sg > 0 else shift < 0) & bounds)[:, None]
         y0 *= front_sign
         np.copyto(y0, -np.inf, where=~crossed)
-        extent = y0.max(axis=1)
-        return np.where(np.isfinite(extent), np.where(front_lr, b, a) - front_sign * extent, front)
+        extent = np.maximum(y0.max(axis=1), front_extent)
+        return np.where(np.isfinite(extent), along - front_sign * extent, front)
 
     def pixel_weights(x):
         """1 / |image gradient| (metres per pixel) of each point's residual at pose x (7,), or per pose
