@@ -345,12 +345,13 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     img = check_image(image, camera.resolution)
     det_img = despeckled(img) if compressed else img
 
-    def faces(payload, relay):  # in the helper: the faces of the detections sent to it
-        mask_bits, shape, packed = payload
+    def faces(payload, relay, inbox):  # in the helper: the faces of the detections sent to it
+        mask_bits, shape, packed, more = payload
         mask = np.unpackbits(mask_bits, count=shape[0] * shape[1]).reshape(shape).view(bool)
         with checked_images(img, det_img):
             rec = _faces(img, det_img, camera, mirror, mask, _unpacked(packed, shape), method, cube_size,
-                         relay if progress is not None else None, compressed, blur_domain, workers)
+                         relay if progress is not None else None, compressed, blur_domain, workers,
+                         more=inbox if more else None)
         return replace(rec, mirror_mask=None)  # (the parent has it)
 
     # The modules of scipy and xslit_fit needed for the faces, imported while the cubes are detected (which
@@ -427,23 +428,31 @@ def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, comp
                                              for k in range(3)))
     if spread < 2.0 / 255.0:
         raise DepthError("image: no mirror content (the mirror region is uniform)")
-    detections = detect_cubes(det_img, mask, compressed=compressed)
     if helper is not None:
-        rec = helper.run((np.packbits(mask), mask.shape, _packed(detections)), progress)
+        # The coloured cubes go to the helper as soon as they are found, and it outlines them (and, while the
+        # grey search still runs here, estimates them) on the core its imports have left idle; the grey ones
+        # follow (`_faces`' `more`).
+        def send(coloured):
+            helper.send((np.packbits(mask), mask.shape, _packed(coloured), True))
+        detections = detect_cubes(det_img, mask, compressed=compressed, coloured_found=send)
+        rec = helper.run(_packed([det for det in detections if det.achromatic]), progress)
         return replace(rec, mirror_mask=mask)
+    detections = detect_cubes(det_img, mask, compressed=compressed)
     scipy_imported()  # before any fork
     return _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, progress, compressed,
                   blur_domain, workers)
 
 
 def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, progress, compressed, blur_domain,
-           workers) -> Reconstruction:
+           workers, more=None) -> Reconstruction:
     """`reconstruct`'s faces of the detections: each outlined and estimated (in worker processes), or
-    refused with the reason."""
+    refused with the reason. With `more` (a `depth.workers.Inbox`), `detections` are the coloured ones alone,
+    sent while the grey search goes on (`detect_cubes`' `coloured_found`), and the grey ones (`_packed`) come
+    from `more`: the coloured faces are outlined and estimated meanwhile."""
     from raytrace.truth import mirror_rays
     from depth.measure import (FAINT_EDGE_CONTRAST, FAINT_EDGE_READINGS, blur_domain_evidence, convex_filled,
-                               extended_to_blob, face_outline, faint_regrowth, pooled_blur_domain,
-                               same_material_faces)
+                               detection_order, extended_to_blob, face_outline, faint_regrowth,
+                               pooled_blur_domain, same_material_faces)
 
     def rays(px):
         r = mirror_rays(camera, mirror, px)
@@ -493,15 +502,14 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
             if alone(hull):
                 yield hull
 
-    def outlined(i):
-        """Detection i's front face outlined: (face pixels (N, 2) (u, v), outline, channels, its
+    def outlined(det):
+        """The detection's front face outlined: (face pixels (N, 2) (u, v), outline, channels, its
         measurement without the blob mask, the grown detection read or None for the one found, its
         `blur_domain_evidence` or None), or the reason it is refused (str). A white or grey cube before
         a background of nearly its brightness may be found as its darker faces alone, which no face
         outline explains: its blob grown across faint edges is read then. (The detection found is not
         handed back: its full-image masks, pickled from the worker processes, came to 47 MB for a
         2048×1536 image's 5 cubes.)"""
-        det = detections[i]
         outcome = outline_detection(det)
         if isinstance(outcome, str) and det.achromatic and not (det.reason or det.cut_by_mirror_edge or det.occluded):
             for grown in regrown(det):
@@ -547,19 +555,55 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         face_px = _pixels(face_mask)
         return face_px, outline, channels, _bare(_measurement(img, det.mask, outline, face_px, channels, compressed))
 
-    # Each detection's face on its own (in worker processes), the larger blobs first.
-    outcomes = fork_map(outlined, len(detections), workers, cost=[int(det.mask.sum()) for det in detections],
-                        progress=None if progress is None else lambda done, _: progress(done, 2 * len(detections)))
+    up = getattr(mirror, "axis", None)
+
+    def outline_all(dets, report=None):
+        """Each detection's face on its own (in worker processes), the larger blobs first."""
+        return fork_map(lambda i: outlined(dets[i]), len(dets), workers, cost=[int(det.mask.sum()) for det in dets],
+                        progress=report)
+
+    early = None  # per detection, its face's estimate made before the grey detections came, or None
+    if more is None:
+        outcomes = outline_all(detections, None if progress is None
+                               else lambda done, _: progress(done, 2 * len(detections)))
+    else:
+        # While the grey search still runs in the parent, the coloured faces are outlined, then estimated as
+        # `settled` would (the longest expected first, as there; a blurred face's outline waits for the
+        # image's blur-domain verdict). (Outlined and estimated in one pool, handed out by blob size, the
+        # faces of s06 left one worker idle for 0.4 s at the end.)
+        outcomes = outline_all(detections)
+        todo = [i for i, out in enumerate(outcomes) if not isinstance(out, str) and method != "shape_prior"
+                and (blur_domain == "linear" or not out[1].blurred)]
+
+        def first_estimate(j):
+            i = todo[j]
+            return estimate_face(rays, replace(outcomes[i][3], blob_mask=detections[i].mask), method=method,
+                                 cube_size=cube_size, up=up)
+        early = [None] * len(detections)
+        for i, est in zip(todo, fork_map(first_estimate, len(todo), workers,
+                                         cost=[expected_work(outcomes[i][3], method) for i in todo])):
+            early[i] = est
+        grey = _unpacked(more.get(), mask.shape)
+        for det in grey:
+            blobs |= det.mask
+        found = sorted(zip(detections + grey, outcomes + outline_all(grey), early + [None] * len(grey)),
+                       key=lambda item: detection_order(item[0]))  # (stably: as `detect_cubes` orders them)
+        detections, outcomes, early = (list(column) for column in zip(*found)) if found else ([], [], [])
+        if progress is not None:  # the outlines, counted once their total is known
+            for done in range(1, len(detections) + 1):
+                progress(done, 2 * len(detections))
     cubes, refused, measured, blurred, evidences = [], [], [], [], []
     achromatic = set()  # indices into measured of the faces found without colour
     alternatives = {}  # index into measured: (blob mask, face pixels, channels) of a face with two readings
     sources = []  # per measured face: (detection, face mask, channels)
+    first = []  # per measured face: its estimate made already (`early`), or None
     domain, any_blurred = blur_domain, False
-    for det, outcome in zip(detections, outcomes):
+    for i, (det, outcome) in enumerate(zip(detections, outcomes)):
         if isinstance(outcome, str):
             refused.append(Refusal(det.bbox, outcome))
             continue
         face_px, outline, channels, meas, grown, ev = outcome
+        first.append(early[i] if early is not None and grown is None else None)
         det = det if grown is None else grown
         bbox = det.bbox  # (the mask's bounds; np.nonzero over a 2048×1536 mask took 14 ms)
         face_mask = _mask_of(face_px, mask.shape)
@@ -589,7 +633,6 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
             for (k, det, _, _), again in zip(blurred, redone):
                 if again is not None:
                     measured[k] = (replace(again[0], blob_mask=det.mask), measured[k][1], again[1])
-    up = getattr(mirror, "axis", None)
 
     def verdict(k, est, meas) -> str | None:
         """Why the estimate of face k is refused, or None."""
@@ -608,7 +651,8 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         (shape_prior), taken as it is, else the face is estimated here."""
         meas, _, outline = measured[k]
         if est is None:
-            est = estimate_face(rays, meas, method=method, cube_size=cube_size, up=up)
+            est = first[k] if first[k] is not None else estimate_face(rays, meas, method=method, cube_size=cube_size,
+                                                                      up=up)
             if not est and k in alternatives:
                 # one off-colour pixel beside a side along the pixel grid is read as a strip (a side face)
                 # where the fit spans the pixel, else as a pixel mixing the face, a narrower strip and the
@@ -666,8 +710,10 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
             if estimated is not None:
                 estimated(k + 1, len(measured))
     else:  # each face on its own (in worker processes), the longest expected first
-        results = fork_map(settled, len(measured), workers,
-                           cost=[expected_work(m, method) for m, _, _ in measured], progress=estimated)
+        # (here alone where every face has its estimate already: its verdict takes less than forking workers)
+        results = fork_map(settled, len(measured), 1 if all(f is not None for f in first) else workers,
+                           cost=[0.0 if f is not None else expected_work(m, method) for (m, _, _), f in zip(measured, first)],
+                           progress=estimated)
     for est, outline, reason, bbox in results:
         if reason:
             refused.append(Refusal(bbox, reason))

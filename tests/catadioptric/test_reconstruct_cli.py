@@ -543,3 +543,53 @@ def test_the_faces_outlined_in_a_helper_process_give_the_results_of_this_one(sce
     assert here.refused == there.refused and here.blur_domain == there.blur_domain
     np.testing.assert_array_equal(here.mirror_mask, there.mirror_mask)
     assert calls["helper"] == calls["here"] and calls["here"][-1] == (4, 4)
+
+
+def test_the_helper_estimates_the_coloured_faces_while_the_grey_search_still_runs(scene, tmp_path, monkeypatch):
+    # `detect_cubes` hands the coloured cubes over before it searches for grey ones (`coloured_found`), and the
+    # helper outlines and estimates them meanwhile. Here the grey search waits until the helper has estimated
+    # both faces (or 60 s): each estimate is logged before the search ends, and the results are this
+    # process's own.
+    import sys
+    import time
+
+    import depth.measure as dm
+    import depth.reconstruct as dr
+    from catadioptric.setup import load_setup
+    setup = load_setup(scene / "in.toml")
+    camera, mirror = setup.camera.build(), setup.mirror.build()
+    img = cv2.cvtColor(cv2.imread(str(scene / "mirror.png")), cv2.COLOR_BGR2RGB)
+    here = dr.reconstruct(img, camera, mirror)
+    log = tmp_path / "log"
+    log.write_text("")
+    real_estimate, real_search = dr.estimate_face, dm._achromatic_regions
+
+    def estimate(*args, **kwargs):  # in the helper's workers
+        est = real_estimate(*args, **kwargs)
+        with open(log, "a") as f:
+            f.write("estimate\n")
+        return est
+
+    def search(*args, **kwargs):  # here
+        deadline = time.perf_counter() + 60.0
+        while log.read_text().count("estimate") < 2 and time.perf_counter() < deadline:
+            time.sleep(0.02)
+        with open(log, "a") as f:
+            f.write("searched\n")
+        return real_search(*args, **kwargs)
+
+    (tmp_path / "not_yet_imported2.py").write_text("")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "not_yet_imported2", raising=False)
+    monkeypatch.setattr(dr, "SOLVER_MODULES", dr.SOLVER_MODULES + ("not_yet_imported2",))
+    monkeypatch.setattr(dr, "_HELPER_FORKED", False)  # as in a fresh process
+    monkeypatch.setattr(dr, "estimate_face", estimate)
+    monkeypatch.setattr(dm, "_achromatic_regions", search)
+    there = dr.reconstruct(img, camera, mirror)
+    assert dr._HELPER_FORKED
+    assert log.read_text().split() == ["estimate", "estimate", "searched"]
+    assert len(here.cubes) == len(there.cubes) == 2
+    for a, b in zip(here.cubes, there.cubes):
+        np.testing.assert_array_equal(a.estimate.center, b.estimate.center)
+        assert (a.depth, a.depth_std, a.bbox, a.estimate.size) == (b.depth, b.depth_std, b.bbox, b.estimate.size)
+    assert here.refused == there.refused

@@ -268,6 +268,31 @@ def test_grey_white_and_black_cubes_are_found_on_a_uniform_background(albedos):
             assert d.achromatic == (np.ptp(c.albedo) == 0.0)
 
 
+def test_the_coloured_cubes_are_handed_over_before_the_grey_search_as_the_result_has_them(monkeypatch):
+    # `detect_cubes(coloured_found=...)`: `depth.reconstruct` estimates the coloured cubes while the grey ones
+    # are searched for; what it is handed must be what the result holds for them
+    import depth.measure as dm
+    cubes = [dataclasses.replace(c, albedo=a) for c, a in
+             zip(three_cubes(), [(0.8, 0.8, 0.8), COLOURS["green"], (0.05, 0.05, 0.05)])]
+    image, mirror = make_image((200, 240), cubes, background="grey", noise=2 / 255)
+    events = []
+    real = dm._achromatic_regions
+    monkeypatch.setattr(dm, "_achromatic_regions", lambda *a, **k: events.append("grey search") or real(*a, **k))
+    detections = detect_cubes(image, mirror, coloured_found=lambda found: events.append(found))
+    assert len(events) == 2 and events[1] == "grey search"
+    handed = events[0]
+    assert len(detections) == 3 and [d.achromatic for d in detections].count(False) == 1
+    assert len(handed) == 1 and not handed[0].achromatic
+    ours = next(d for d in detections if not d.achromatic)
+    assert (handed[0].bbox, handed[0].occluded, handed[0].cut_by_mirror_edge, handed[0].reason) == \
+        (ours.bbox, ours.occluded, ours.cut_by_mirror_edge, ours.reason)
+    np.testing.assert_array_equal(handed[0].mask, ours.mask)
+    np.testing.assert_array_equal(handed[0].front_face_mask, ours.front_face_mask)
+    # and without the callback, the same detections in the same order
+    again = detect_cubes(image, mirror)
+    assert [d.bbox for d in again] == [d.bbox for d in detections]
+
+
 @pytest.mark.parametrize("albedos", [
     [(0.8, 0.8, 0.8), (0.3, 0.3, 0.3), (0.05, 0.05, 0.05)],
     [(0.95, 0.95, 0.95), (0.05, 0.05, 0.05), (0.25, 0.25, 0.25)],  # each unlike the sky behind it

@@ -125,7 +125,7 @@ def test_a_helper_imports_its_modules_there_and_runs_its_task_on_the_payload(tmp
     _fresh_module(tmp_path, monkeypatch, "helper_mod")
     state = np.arange(6) * 10  # this process's state when the helper forks: inherited, not sent
 
-    def task(payload, progress):
+    def task(payload, progress, inbox):
         for k in range(3):
             progress(k + 1, 3)
         return int(state[payload]) + sys.modules["helper_mod"].VALUE, os.getpid()
@@ -140,16 +140,61 @@ def test_a_helper_imports_its_modules_there_and_runs_its_task_on_the_payload(tmp
     assert "helper_mod" not in sys.modules  # imported in the helper only
 
 
+def test_a_helper_starts_on_the_first_payload_sent_and_takes_the_later_ones_from_its_inbox(tmp_path, monkeypatch):
+    import time
+
+    from depth.workers import fork_helper
+    _fresh_module(tmp_path, monkeypatch, "helper_mod5")
+
+    def task(first, progress, inbox):
+        # the first payload's work, done while nothing else has come; then the second, waited for
+        waited = not inbox.ready()  # (before "started": the test sends the second payload only after it)
+        (tmp_path / "started").write_text(str(first))
+        second = inbox.get()
+        return first, second, waited, inbox.ready()
+
+    helper = fork_helper(task, ["helper_mod5"])
+    helper.send([1, 2])
+    deadline = time.perf_counter() + 30
+    while not (tmp_path / "started").exists() and time.perf_counter() < deadline:
+        time.sleep(0.02)
+    assert (tmp_path / "started").read_text() == "[1, 2]"  # at work before `run` sent anything more
+    assert helper.run({"rest": 3}) == ([1, 2], {"rest": 3}, True, False)
+
+
+def test_a_payload_larger_than_the_pipe_is_sent_without_waiting_for_the_helper_to_read_it(tmp_path, monkeypatch):
+    # The helper reads its first payload only once it has imported its modules; the parent goes on meanwhile.
+    # Here the helper's module import waits (up to 60 s) for a file the parent writes after `send` returns.
+    from depth.workers import fork_helper
+    flag = tmp_path / "sent"
+    body = (f"import pathlib, time\n"
+            f"deadline = time.perf_counter() + 60.0\n"
+            f"while not pathlib.Path({str(flag)!r}).exists() and time.perf_counter() < deadline:\n"
+            f"    time.sleep(0.02)\n"
+            f"SAW_IT = pathlib.Path({str(flag)!r}).exists()\n")
+    _fresh_module(tmp_path, monkeypatch, "helper_mod6", body)
+
+    def task(payload, progress, inbox):
+        import sys
+        return sys.modules["helper_mod6"].SAW_IT, int(payload.sum()), inbox.get()
+
+    helper = fork_helper(task, ["helper_mod6"])
+    big = np.ones(4_000_000, dtype=np.uint8)  # 4 MB, many times a pipe's buffer
+    helper.send(big)
+    flag.write_text("")
+    assert helper.run("rest") == (True, 4_000_000, "rest")
+
+
 def test_no_helper_where_every_module_is_imported_already():
     from depth.workers import fork_helper
-    assert fork_helper(lambda payload, progress: payload, ["numpy", "os"]) is None
+    assert fork_helper(lambda payload, progress, inbox: payload, ["numpy", "os"]) is None
 
 
 def test_a_helper_task_error_is_raised_here_and_a_helper_never_run_ends(tmp_path, monkeypatch):
     from depth.workers import fork_helper
     _fresh_module(tmp_path, monkeypatch, "helper_mod2")
 
-    def task(payload, progress):
+    def task(payload, progress, inbox):
         raise KeyError(f"no face {payload}")
 
     helper = fork_helper(task, ["helper_mod2"])
@@ -175,7 +220,7 @@ def test_a_helper_closed_while_it_runs_its_task_is_ended_not_waited_for(tmp_path
         (tmp_path / f"worker{i}").write_text(str(os.getpid()))
         time.sleep(60)
 
-    def task(payload, progress):
+    def task(payload, progress, inbox):
         progress(0, 2)
         fork_map(work, 2, workers=2)
 
@@ -214,6 +259,6 @@ def test_a_helper_closed_while_it_runs_its_task_is_ended_not_waited_for(tmp_path
 def test_a_helper_that_dies_is_reported_not_waited_for(tmp_path, monkeypatch):
     from depth.workers import fork_helper
     _fresh_module(tmp_path, monkeypatch, "helper_mod3")
-    helper = fork_helper(lambda payload, progress: os._exit(3), ["helper_mod3"])
+    helper = fork_helper(lambda payload, progress, inbox: os._exit(3), ["helper_mod3"])
     with pytest.raises(RuntimeError, match="ended without a result"):
         helper.run(1)
