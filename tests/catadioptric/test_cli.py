@@ -40,6 +40,34 @@ def test_the_console_script_is_console_which_exits_with_mains_status(tmp_path):
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.parametrize("preset, seen", [(None, "1"), ("3", "3")])
+def test_the_console_script_runs_one_openblas_thread_unless_the_environment_says(preset, seen):
+    """`console` sets OPENBLAS_NUM_THREADS before numpy loads OpenBLAS (the command's work is spread over
+    processes; an idle OpenBLAS thread spins on the core another process needs), and leaves a value the
+    user set. In the process, OpenBLAS then reports that many threads."""
+    import os
+    import subprocess
+    import sys
+    code = ("import os, sys; import catadioptric.cli as cli\n"
+            "def main(one_shot):\n"
+            "    loaded = 'numpy' in sys.modules\n"
+            "    from raytrace.render import _openblas_thread_controls\n"
+            "    print(os.environ.get('OPENBLAS_NUM_THREADS'), loaded, [get() for get, _ in _openblas_thread_controls()])\n"
+            "    return 0\n"
+            "cli.main = main\n"
+            "cli.console()\n")
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    if preset is not None:
+        env["OPENBLAS_NUM_THREADS"] = preset
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120,
+                          check=False)
+    assert done.returncode == 0, done.stderr
+    value, loaded, threads = done.stdout.strip().split(maxsplit=2)
+    assert (value, loaded) == (seen, "False")  # numpy not loaded before `console` set it
+    # numpy's OpenBLAS took it (capped at the cores it finds: 3 is 2 on a 2-core machine)
+    assert threads == "[1]" if seen == "1" else (threads != "[1]" or os.cpu_count() == 1)
+
+
 @pytest.mark.parametrize("key, value, message", [
     ("camera", {"focal_px": [0.0, 350.0]}, "camera.focal_px: expected a list of 2 positive numbers"),
     ("mirror", {"axis": [0.0, 0.0, 0.0]}, "mirror.axis: expected a non-zero vector"),
