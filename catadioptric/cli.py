@@ -382,8 +382,8 @@ def console() -> None:
     # (this module imports it only where used), and inherited by the processes the command forks, whose
     # scipy loads its own. The command spreads its work over processes itself, and an idle OpenBLAS thread
     # spins for a while after it is started or woken, on the core the other process needs: a `reconstruct`
-    # of a 2048×1536 image took 3.4–4.0 s of CPU with one thread, 4.4–4.6 s without (its imports alone
-    # 0.93–1.00 s against 1.22–1.26 s).
+    # of a 2048×1536 image, 8 runs alternated with two threads, took 4.65 s of CPU (median) against 4.91 s,
+    # its imports alone 0.93–1.00 s against 1.22–1.26 s (seventy-second session).
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     status = main(one_shot=True)
     gc.freeze()
