@@ -836,7 +836,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         if has_back:  # back edges: on the side plane at w = −s
             out[:, back_idx] = _side_plane_w(q[back_idx], r[back_idx], c, axes, side_sign[back_idx], s) + s[:, None]
         if len(merged) > 1:
-            line = np.where(is_lr[front_idx], a[:, front_idx], b[:, front_idx])  # the coordinate it fixes
+            line = np.where(front_lr, a[:, front_idx], b[:, front_idx])  # the coordinate it fixes
             out[:, front_idx] = contour(r[front_idx], axes, s, line, along[:, front_idx], out[:, front_idx])
         return out
 

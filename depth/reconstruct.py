@@ -429,9 +429,9 @@ def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, comp
     if spread < 2.0 / 255.0:
         raise DepthError("image: no mirror content (the mirror region is uniform)")
     if helper is not None:
-        # The coloured cubes go to the helper as soon as they are found, and it outlines them (and, while the
-        # grey search still runs here, estimates them) on the core its imports have left idle; the grey ones
-        # follow (`_faces`' `more`).
+        # The coloured cubes go to the helper as soon as they are found, and it outlines and estimates them
+        # while the grey search still runs here, on the core its imports have left idle; the grey ones follow
+        # (`_faces`' `more`).
         def send(coloured):
             helper.send((np.packbits(mask), mask.shape, _packed(coloured), True))
         detections = detect_cubes(det_img, mask, compressed=compressed, coloured_found=send)
@@ -562,7 +562,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         return fork_map(lambda i: outlined(dets[i]), len(dets), workers, cost=[int(det.mask.sum()) for det in dets],
                         progress=report)
 
-    early = None  # per detection, its face's estimate made before the grey detections came, or None
+    early = [None] * len(detections)  # per detection, its face's estimate made before the grey ones came, or None
     if more is None:
         outcomes = outline_all(detections, None if progress is None
                                else lambda done, _: progress(done, 2 * len(detections)))
@@ -579,7 +579,6 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
             i = todo[j]
             return estimate_face(rays, replace(outcomes[i][3], blob_mask=detections[i].mask), method=method,
                                  cube_size=cube_size, up=up)
-        early = [None] * len(detections)
         for i, est in zip(todo, fork_map(first_estimate, len(todo), workers,
                                          cost=[expected_work(outcomes[i][3], method) for i in todo])):
             early[i] = est
@@ -603,7 +602,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
             refused.append(Refusal(det.bbox, outcome))
             continue
         face_px, outline, channels, meas, grown, ev = outcome
-        first.append(early[i] if early is not None and grown is None else None)
+        first.append(early[i])  # (a coloured face's: never a grown detection's, which are grey)
         det = det if grown is None else grown
         bbox = det.bbox  # (the mask's bounds; np.nonzero over a 2048×1536 mask took 14 ms)
         face_mask = _mask_of(face_px, mask.shape)
@@ -712,7 +711,8 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
     else:  # each face on its own (in worker processes), the longest expected first
         # (here alone where every face has its estimate already: its verdict takes less than forking workers)
         results = fork_map(settled, len(measured), 1 if all(f is not None for f in first) else workers,
-                           cost=[0.0 if f is not None else expected_work(m, method) for (m, _, _), f in zip(measured, first)],
+                           cost=[0.0 if f is not None else expected_work(m, method)
+                                 for (m, _, _), f in zip(measured, first)],
                            progress=estimated)
     for est, outline, reason, bbox in results:
         if reason:
