@@ -53,6 +53,53 @@ def least_squares(*args, **kwargs):
     from scipy.optimize import least_squares as solve
     return solve(*args, **kwargs)
 
+
+class _Lockstep:
+    """Calls run side by side, each in a greenlet, with their evaluations made together: once every
+    call still running waits on one, the arrays it asks for (each with a row per pose) go to
+    `evaluate`, row-stacked with the others', in one batched call, in the calls' order. `exact`
+    explores its starting turns so, and walks its turn profiles both ways. Its residuals are numpy's
+    row by row, so a pose's are the same bits in any batch, and each call ends as it would alone; what
+    is saved is the per-call overhead of numpy and Python, most of an evaluation's time at a face's
+    few hundred edge points. Greenlets, not threads: they switch on one thread without the kernel;
+    threads, handed over on each evaluation, made the exploration 1.3× slower (bench/README,
+    seventy-third session). Each call runs in a copy of the caller's context (numpy's errstate)."""
+
+    def __init__(self, evaluate: Callable[..., np.ndarray]):
+        self._evaluate = evaluate
+
+    def run(self, calls: list) -> list:
+        """Each call(evaluate) run with `evaluate` (arrays of K rows each → a result of K rows) batched
+        across them; their results, in order."""
+        import contextvars  # noqa: PLC0415
+        from greenlet import getcurrent, greenlet  # noqa: PLC0415 (only `exact` needs it)
+        parent = getcurrent()
+        results = [None] * len(calls)
+
+        def body(i, call):
+            results[i] = call(lambda *arrays: parent.switch(i, arrays))
+            return None  # back to the parent, which reads the call as ended
+
+        lets = []
+        for i, call in enumerate(calls):
+            g = greenlet(lambda i=i, call=call: body(i, call), parent=parent)
+            g.gr_context = contextvars.copy_context()
+            lets.append(g)
+        posted = [g.switch() for g in lets]  # each runs to its first evaluation or its end
+        while True:
+            waiting = [p for p in posted if p is not None]
+            if not waiting:
+                return results
+            stacked = [np.concatenate(arrays) for arrays in zip(*(a for _, a in waiting))]
+            n = len(stacked[0])
+            # a lone pose evaluated twice over: numpy multiplies one row by OpenBLAS's matrix-vector
+            # kernel, whose rounding differs from its matrix-matrix one (a pose's bits would then
+            # depend on whether another call happened to wait beside it)
+            values = self._evaluate(*([np.concatenate([s, s]) for s in stacked] if n == 1 else stacked))
+            rows = np.cumsum([len(a[0]) for _, a in waiting])[:-1]
+            posted = [lets[i].switch(v) for (i, _), v in zip(waiting, np.split(values[:n], rows))]
+
+
 METHODS = ("ddar", "dds", "exact")
 
 RayFunction = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
@@ -62,6 +109,10 @@ SIDES = ("left", "right", "top", "bottom")
 
 UPRIGHT_MISFIT_PX = 0.25
 """Rms edge misfit (pixels) above which `exact` also tries a face tilted off the vertical."""
+
+LOCKSTEP = True
+"""`exact` explores its starting poses side by side, their evaluations batched (`_Lockstep`); with
+False, one after another (each still through `_Lockstep`, to the same bits)."""
 
 PLACE_NFEV = 8
 """Function evaluations `exact` spends placing the face at each starting turn (centre and size only)."""
@@ -928,17 +979,20 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         """The residuals of one pose x (7,): see `resids`."""
         return resids(x[None])[0]
 
-    def fit_lsq(y0, free, x_fixed=None, own_scales=None, offset=False, **kw):
+    def fit_lsq(y0, free, x_fixed=None, own_scales=None, offset=False, evaluate=None, **kw):
         """least_squares over the pose parameters `free` (the others held at x_fixed, or with `offset`
         solved as offsets from x_fixed) with a forward-difference Jacobian whose neighbouring poses
         are evaluated in one batched call. With `own_scales` (a mask of the points to use), the pixel
-        scales are re-measured at every pose."""
+        scales are re-measured at every pose. `evaluate` (poses (K, 7) → residuals) stands for
+        `resids` at the pixel scales `weight` (`side_by_side`)."""
         def values(y):
             x = np.zeros((len(y), 7)) if x_fixed is None else np.repeat(x_fixed[None], len(y), axis=0)
             if offset:
                 x[:, free] += y
             else:
                 x[:, free] = y
+            if evaluate is not None:
+                return evaluate(x)
             w = None if own_scales is None else np.where(own_scales, pixel_weights(x), 0.0)
             return resids(x, w)
 
@@ -1040,24 +1094,38 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         x[upright] = y
         return x
 
+    def side_by_side(calls):
+        """The calls' results, each call(evaluate) given `evaluate` (poses (K, 7), pixel scales (K, N) →
+        `resids`); with LOCKSTEP, run side by side."""
+        if LOCKSTEP:
+            return _Lockstep(resids).run(calls)
+        return [_Lockstep(resids).run([call])[0] for call in calls]
+
     def solve(free: bool, starts, max_nfev: int = 300):
-        best = None
-        for x0 in starts:
+        def one(x0, evaluate=None):
             if free:
                 sol = fit_lsq(x0, np.arange(7), bounds=([-lim] * 3 + [-np.inf] * 4, [lim] * 3 + [np.inf] * 4),
-                              **dict(opts, max_nfev=max_nfev))
-                x = sol.x
-            else:
-                y0 = x0[upright]
-                if len(starts) > 1 and len(merged) > 1:
-                    # ddar read the contour as the face, so its centre and size suit no turn that shows
-                    # a merged side face: place the face at this start's turn first, so that each start
-                    # explores its turn rather than sliding back to ddar's
-                    y0 = np.r_[y0[0], fit_lsq(y0[1:], placed, full(y0),
-                                              bounds=([-np.inf] * 3 + [-LOG_SIZE_RANGE], [np.inf] * 3 + [LOG_SIZE_RANGE]),
-                                              **dict(opts, max_nfev=PLACE_NFEV)).x]
-                sol = fit_lsq(y0, upright, bounds=upright_bounds, **dict(opts, max_nfev=max_nfev))
-                x = full(sol.x)
+                              evaluate=evaluate, **dict(opts, max_nfev=max_nfev))
+                return sol.x, sol
+            y0 = x0[upright]
+            if len(starts) > 1 and len(merged) > 1:
+                # ddar read the contour as the face, so its centre and size suit no turn that shows
+                # a merged side face: place the face at this start's turn first, so that each start
+                # explores its turn rather than sliding back to ddar's
+                y0 = np.r_[y0[0], fit_lsq(y0[1:], placed, full(y0), evaluate=evaluate,
+                                          bounds=([-np.inf] * 3 + [-LOG_SIZE_RANGE], [np.inf] * 3 + [LOG_SIZE_RANGE]),
+                                          **dict(opts, max_nfev=PLACE_NFEV)).x]
+            sol = fit_lsq(y0, upright, bounds=upright_bounds, evaluate=evaluate, **dict(opts, max_nfev=max_nfev))
+            return full(sol.x), sol
+
+        if len(starts) > 1:
+            calls = [lambda ev, x0=x0: one(x0, lambda x: ev(x, np.broadcast_to(weight, (len(x), len(weight)))))
+                     for x0 in starts]
+            fits = side_by_side(calls)
+        else:
+            fits = [one(starts[0])]
+        best = None
+        for x, sol in fits:
             if sol.status >= 0 and (best is None or sol.cost < best[1].cost):  # 0: stopped at max_nfev
                 best = (x, sol)
         return best
@@ -1094,21 +1162,22 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         scales) and per step (pose, pixel scales, cost over the fit's at their common scales). Stops
         going one way once that ratio, rising, exceeds PROFILE_STOP, or, given `lik_scale`, once the
         cost exceeds the lowest seen by SIGMA_PROFILE_STOP times it, and the next step does too."""
-        nonlocal weight
-        keep = weight
         fitted = (x_best, pixel_weights(x_best))
-        steps = []
-        for direction in (-1.0, 1.0):
+
+        def walk(direction, ev):
             x, w = fitted
+            steps = []
             prev, lowest, pending = 1.0, 0.0, False
             for k in range(1, int(PROFILE_SPAN / PROFILE_STEP) + 1):
                 t = x_best[0] + direction * k * PROFILE_STEP
                 if abs(t) > lim:
                     break
-                weight = w  # the scales of the previous turn's pose
-                x = place(x, t)
+                # placed at the scales of the previous turn's pose
+                x = place(x, t, lambda xs, w=w: ev(xs, np.broadcast_to(w, (len(xs), len(w)))))
                 w = pixel_weights(x)
-                c, c0 = costs([(x, w), fitted])
+                usable = (w > 0) & (fitted[1] > 0)  # as `costs`: each pose at its own scales, where both have one
+                r = ev(np.stack([x, fitted[0]]), np.stack([np.where(usable, w, 0.0), np.where(usable, fitted[1], 0.0)]))
+                c, c0 = (float(np.sum(np.sqrt(1.0 + ri ** 2) - 1.0)) for ri in r)
                 ratio = c / max(c0, 1e-12)
                 steps.append((x, w, ratio))
                 # one costly turn alone does not stop the walk: where a face merged into the outline comes
@@ -1119,8 +1188,11 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
                     break
                 pending = high and ratio > prev
                 prev, lowest = ratio, min(lowest, c - c0)
-        weight = keep
-        return fitted, steps
+            return steps
+
+        # the two ways are walked side by side (`_Lockstep`), their evaluations batched
+        down, up = side_by_side([lambda ev: walk(-1.0, ev), lambda ev: walk(1.0, ev)])
+        return fitted, down + up
 
     def profiled(x_best):
         """The turn profiled: from the fitted turn outward in PROFILE_STEP steps, the face placed
@@ -1128,8 +1200,8 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         fits better, the fit is finished from there. None when none does."""
         nonlocal weight
         keep = weight
-        fitted, steps = walk_turns(x_best, lambda x, t: np.r_[t, 0.0, 0.0, fit_lsq(
-            x[3:7], placed, np.r_[t, np.zeros(6)], **dict(opts, max_nfev=PLACE_NFEV)).x])
+        fitted, steps = walk_turns(x_best, lambda x, t, ev: np.r_[t, 0.0, 0.0, fit_lsq(
+            x[3:7], placed, np.r_[t, np.zeros(6)], evaluate=ev, **dict(opts, max_nfev=PLACE_NFEV)).x])
         profile_log[:] = [(x, w) for x, w, _ in steps]
         best, gain = None, 1.0
         for x, w, ratio in steps:
@@ -1156,9 +1228,9 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         placed. `profiled` still chooses the estimate from those: with its faces placed in full it chose
         worse (bench/README, forty-fifth session). The σ reads the turns that fit as well or better
         here. As `walk_turns`: the fit's (pose, pixel scales) and per turn (pose, pixel scales, ratio)."""
-        def place(x, t):
+        def place(x, t, ev):
             x_fixed = np.r_[t, 0.0, 0.0, x[3:7]]
-            return x_fixed + np.r_[np.zeros(3), fit_lsq(np.zeros(4), placed, x_fixed, offset=True,
+            return x_fixed + np.r_[np.zeros(3), fit_lsq(np.zeros(4), placed, x_fixed, offset=True, evaluate=ev,
                                                          **dict(opts, max_nfev=PLACE_NFEV)).x]
         return walk_turns(x_best, place, lik_scale)
 

@@ -1507,3 +1507,109 @@ def test_the_sigma_of_a_face_pinned_by_its_merged_faces_kinks_covers_a_stretch_o
     assert est, est.reason
     depth = float(rig.mirror.distance_to_axis(est.center[None])[0])
     assert abs(depth - rig.depth(cube)) < 3.0 * est.std["z"]
+
+
+def _batches_spied(monkeypatch):
+    """Spy on `_Lockstep`: the number of rows of each batched evaluation and of each call's pose sets."""
+    import depth.estimate as E
+    batches = []
+    real = E._Lockstep.__init__
+
+    def spying(self, evaluate):
+        real(self, lambda x, *more: (batches.append(len(x)), evaluate(x, *more))[1])
+    monkeypatch.setattr(E._Lockstep, "__init__", spying)
+    return batches
+
+
+def _misfit_left_side(meas):
+    """The upper half of the left side read 1.5 px out: no upright square explains the edges, so
+    `exact` also explores tilted faces from ten starts (its stage 2)."""
+    left = meas.sides_px[0].copy()
+    left[left[:, 1] < np.median(left[:, 1]), 0] -= 1.5
+    return dataclasses.replace(meas, sides_px=(left,) + tuple(meas.sides_px[1:]), edge_bias_px=0.15,
+                               edge_noise_px=0.02)
+
+
+@pytest.mark.parametrize("case", ["merged side face", "distinct side face", "stage 2"])
+def test_exact_explores_its_starts_side_by_side_to_the_same_bits_as_one_by_one(rig, monkeypatch, case):
+    """`exact` runs its starting poses side by side with their evaluations batched (`_Lockstep`):
+    every number of the estimate must be the same bits as with the starts run one after another, on
+    noisy edges (placement first where a side face merges into the outline; with a misfit that
+    also brings the tilted starts of stage 2)."""
+    import pickle
+
+    import depth.estimate as E
+    if case == "merged side face":
+        meas = rig.measure(rig.cube(0.5, 5.0, yaw_deg=20.0), merged=True, noise_px=0.1, seed=3)
+    elif case == "distinct side face":
+        meas = rig.measure(rig.cube(0.5, 12.0, yaw_deg=25.0), noise_px=0.1, seed=1)
+    else:
+        meas = _misfit_left_side(rig.measure(rig.cube(0.6, -20.0), gaps=True))
+    batches = _batches_spied(monkeypatch)
+    side_by_side = estimate_face(rig.rays, meas, method="exact", up=rig.mirror.axis)
+    assert side_by_side
+    # batched indeed: the first evaluation of each exploration takes every start's pose (7 upright turns)
+    assert batches and max(batches) >= 7 * (5 if case == "merged side face" else 6)
+    if case == "stage 2":
+        assert max(batches) >= 10 * 8  # ten tilted starts, each pose and its 7 neighbours
+    n_batched = len(batches)
+    monkeypatch.setattr(E, "LOCKSTEP", False)
+    one_by_one = estimate_face(rig.rays, meas, method="exact", up=rig.mirror.axis)
+    assert max(batches[n_batched:]) <= 8  # with it off, a batch holds one start's poses alone
+    assert pickle.dumps(side_by_side) == pickle.dumps(one_by_one)
+
+
+def test_lockstep_batches_the_waiting_calls_in_order_until_each_ends():
+    """Call k asks k + 1 evaluations of k + 1 rows each: every batch holds, in the calls' order, the
+    pose sets of the calls not yet ended, and each call gets back its own rows."""
+    from depth.estimate import _Lockstep
+
+    batches = []
+
+    def evaluate(x):
+        batches.append(x[:, 0].copy())
+        return x * 10.0
+
+    def call(k):
+        def run(ev):
+            got = [ev(np.full((k + 1, 7), 100.0 * k + step)) for step in range(k + 1)]
+            return [g[:, 0] for g in got]
+        return run
+
+    results = _Lockstep(evaluate).run([call(k) for k in range(3)])
+    assert [list(map(list, r)) for r in results] == [[[100.0 * k * 10 + 10 * step] * (k + 1) for step in range(k + 1)]
+                                                     for k in range(3)]
+    assert [list(b) for b in batches] == [[0.0, 100.0, 100.0, 200.0, 200.0, 200.0],
+                                          [101.0, 101.0, 201.0, 201.0, 201.0],
+                                          [202.0, 202.0, 202.0]]
+
+
+def test_lockstep_calls_run_in_the_callers_numpy_error_state_and_raise_their_errors():
+    from depth.estimate import _Lockstep
+
+    def divide(ev):
+        return float(ev(np.ones((1, 7)))[0, 0] / np.float64(0.0))
+
+    with np.errstate(divide="raise"):
+        with pytest.raises(FloatingPointError):
+            _Lockstep(lambda x: x).run([lambda ev: 0.0, divide])
+    with np.errstate(divide="ignore"):
+        assert _Lockstep(lambda x: x).run([lambda ev: 0.0, divide]) == [0.0, np.inf]
+
+
+def test_lockstep_evaluates_a_lone_pose_as_a_pair():
+    """One row alone would take OpenBLAS's matrix-vector product, whose rounding differs from the
+    matrix-matrix one that batches take: a lone pose is evaluated twice over and gets its one row back."""
+    from depth.estimate import _Lockstep
+
+    seen = []
+
+    def evaluate(x):
+        seen.append(x.copy())
+        return x + np.arange(len(x))[:, None]
+
+    out = _Lockstep(evaluate).run([lambda ev: ev(np.full((1, 7), 3.0)), lambda ev: ev(np.full((2, 7), 5.0))])
+    assert [s.shape for s in seen] == [(3, 7)]
+    out = _Lockstep(evaluate).run([lambda ev: ev(np.full((1, 7), 3.0))])
+    assert [s.shape for s in seen[1:]] == [(2, 7)] and np.array_equal(seen[1], np.full((2, 7), 3.0))
+    assert np.array_equal(out[0], np.full((1, 7), 3.0))
