@@ -56,28 +56,28 @@ def least_squares(*args, **kwargs):
 
 class _Lockstep:
     """Calls run side by side, each in a greenlet, with their evaluations made together: once every
-    call still running waits on one, the arrays it asks for (each with a row per pose) go to
-    `evaluate`, row-stacked with the others', in one batched call, in the calls' order. `exact`
-    explores its starting turns so, and walks its turn profiles both ways. Its residuals are numpy's
-    row by row, so a pose's are the same bits in any batch, and each call ends as it would alone; what
-    is saved is the per-call overhead of numpy and Python, most of an evaluation's time at a face's
-    few hundred edge points. Greenlets, not threads: they switch on one thread without the kernel;
-    threads, handed over on each evaluation, made the exploration 1.3× slower (bench/README,
-    seventy-third session). Each call runs in a copy of the caller's context (numpy's errstate)."""
+    call still running waits on one, its poses (K, 7) and their pixel scales go to `evaluate`, stacked
+    with the others', in one batched call, in the calls' order. `exact` explores its starting turns so,
+    and walks its turn profiles both ways. Its residuals are numpy's row by row, so a pose's are the
+    same bits in any batch, and each call ends as it would alone; what is saved is the per-call
+    overhead of numpy and Python, most of an evaluation's time at a face's few hundred edge points.
+    Greenlets, not threads: they switch on one thread without the kernel; threads, handed over on each
+    evaluation, made the exploration 1.2–1.4× slower (bench/README, seventy-third session). Each call
+    runs in a copy of the caller's context (numpy's errstate)."""
 
-    def __init__(self, evaluate: Callable[..., np.ndarray]):
+    def __init__(self, evaluate: Callable[[np.ndarray, np.ndarray], np.ndarray]):
         self._evaluate = evaluate
 
     def run(self, calls: list) -> list:
-        """Each call(evaluate) run with `evaluate` (arrays of K rows each → a result of K rows) batched
-        across them; their results, in order."""
+        """Each call(evaluate) run with evaluate(poses (K, 7), scales) → (K, M), the scales one row (N,)
+        for all K poses or a row each (K, N), batched across the calls; their results, in order."""
         import contextvars  # noqa: PLC0415
         from greenlet import getcurrent, greenlet  # noqa: PLC0415 (only `exact` needs it)
         parent = getcurrent()
         results = [None] * len(calls)
 
         def body(i, call):
-            results[i] = call(lambda *arrays: parent.switch(i, arrays))
+            results[i] = call(lambda x, w: parent.switch(i, x, w))
             return None  # back to the parent, which reads the call as ended
 
         lets = []
@@ -90,14 +90,21 @@ class _Lockstep:
             waiting = [p for p in posted if p is not None]
             if not waiting:
                 return results
-            stacked = [np.concatenate(arrays) for arrays in zip(*(a for _, a in waiting))]
-            n = len(stacked[0])
-            # a lone pose evaluated twice over: numpy multiplies one row by OpenBLAS's matrix-vector
-            # kernel, whose rounding differs from its matrix-matrix one (a pose's bits would then
-            # depend on whether another call happened to wait beside it)
-            values = self._evaluate(*([np.concatenate([s, s]) for s in stacked] if n == 1 else stacked))
-            rows = np.cumsum([len(a[0]) for _, a in waiting])[:-1]
-            posted = [lets[i].switch(v) for (i, _), v in zip(waiting, np.split(values[:n], rows))]
+            x = np.concatenate([xi for _, xi, _ in waiting])
+            w0 = waiting[0][2]
+            if w0.ndim == 1 and all(wi is w0 for _, _, wi in waiting):
+                w = w0[None]  # one row of scales for every pose
+            else:
+                w = np.concatenate([np.broadcast_to(wi, (len(xi), wi.shape[-1])) for _, xi, wi in waiting])
+            n = len(x)
+            if n == 1:
+                # a lone pose evaluated twice over: numpy multiplies one row by OpenBLAS's matrix-vector
+                # kernel, whose rounding differs from its matrix-matrix one (a pose's bits would then
+                # depend on whether another call happened to wait beside it)
+                x, w = np.concatenate([x, x]), np.concatenate([w, w])
+            values = self._evaluate(x, w)[:n]
+            rows = np.cumsum([len(xi) for _, xi, _ in waiting])[:-1]
+            posted = [lets[i].switch(v) for (i, _, _), v in zip(waiting, np.split(values, rows))]
 
 
 METHODS = ("ddar", "dds", "exact")
@@ -839,13 +846,14 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
 
     def face_edges(faces):
         """The edges of the given faces as `contour` reads them; faces[0] is the front face, the others
-        merged with it. Per edge (a vertex pair) of the merged faces and front-side point: the edge's
-        vertices' coordinates (in edge lengths) along the coordinate the point's line fixes (a for
-        left/right points, b for top/bottom ones) and the one it measures, (P, N) each (the points along
-        the last axis: numpy's loops then run over them, not over the few edges), and their w (P, 1). Per
-        merged face: the slice of its edges, its frame axis and its sign, for the visibility test, and the
-        points it may bound (N,). Each face images as a convex quadrilateral, so a line's largest crossing
-        of it is on an edge.
+        merged with it. A merged face's edges that `contour` reads are the three with a back vertex (the
+        fourth is the front face's): a chain of its four vertices, front, back, back, front. Per merged
+        face, vertex of its chain and front-side point: the vertex's coordinates (in edge lengths) along the
+        coordinate the point's line fixes (a for left/right points, b for top/bottom ones) and the one it
+        measures, "cx" and "cy" (F, 4, N) (the points along the last axis: numpy's loops then run over
+        them, not over the few vertices). Per merged face: its frame axis and its sign, for the
+        visibility test, and the points it may bound (N,). Each face images as a convex quadrilateral, so
+        a line's largest crossing of it is on an edge.
 
         The front face's edges (both vertices at w = 0, one of them shared with each merged face) do not
         move with the rays and are always seen: per point, only the two crossing its line count, and
@@ -865,14 +873,14 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         outward = measured[front[:, 0]] * front_sign
         cross = [np.argmax((run != 0) & (outward > 0), axis=0), np.argmax((run != 0) & (outward < 0), axis=0)]
         cols = np.arange(n_front)
-        pr, seen = [], []
+        chains, seen = [], []
         for f, a, sg in faces[1:]:
-            own = [(f[i], f[(i + 1) % 4]) for i in range(4) if _VERTS[f[i], 2] or _VERTS[f[(i + 1) % 4], 2]]
-            seen.append((slice(len(pr), len(pr) + len(own)), a, sg, ~(((a == 1) == front_lr) & (front_sign != sg))))
-            pr += own
-        pr = np.array(pr, dtype=np.intp).reshape(-1, 2)
-        return {"x0": fixed[pr[:, 0]], "x1": fixed[pr[:, 1]], "y0": measured[pr[:, 0]], "y1": measured[pr[:, 1]],
-                "w0": _VERTS[pr[:, 0], 2:3], "w1": _VERTS[pr[:, 1], 2:3], "seen": seen,
+            start = next(i for i in range(4) if _VERTS[f[i], 2] == 0 and _VERTS[f[(i + 1) % 4], 2] != 0)
+            chains.append([f[(start + j) % 4] for j in range(4)])
+            seen.append((a, sg, ~(((a == 1) == front_lr) & (front_sign != sg))))
+        chains = np.array(chains, dtype=np.intp).reshape(-1, 4)
+        assert np.array_equal(_VERTS[chains, 2] != 0, np.tile([False, True, True, False], (len(chains), 1)))
+        return {"cx": fixed[chains], "cy": measured[chains], "seen": seen,
                 "front_x0": np.stack([fixed[front[k, 0], cols] for k in cross]),
                 "front_run": np.stack([run[k, cols] for k in cross])}
 
@@ -909,36 +917,37 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         front_extent = np.where((t_out >= 0) & (t_out <= 1), half, np.where((t_in >= 0) & (t_in <= 1), -half, -np.inf))
         dn = axes[:, 2] @ r.T
         shift_a, shift_b = s1 * (axes[:, 0] @ r.T / dn), s1 * (axes[:, 1] @ r.T / dn)  # (K, N): a back vertex's move
-        # the projected vertices of each merged face's edge (K, P, N): x along the coordinate the point's line
-        # fixes, y along the one measured
-        xs, ys = np.where(front_lr, shift_a, shift_b)[:, None], np.where(front_lr, shift_b, shift_a)[:, None]
-        s3 = s[:, None, None]
-        x0 = edges["x0"] * s3
-        x0 -= edges["w0"] * xs
-        x1 = edges["x1"] * s3
-        x1 -= edges["w1"] * xs
-        y0 = edges["y0"] * s3
-        y0 -= edges["w0"] * ys
-        y1 = edges["y1"] * s3
-        y1 -= edges["w1"] * ys
-        # where the line crosses each edge (t in [0, 1]), and the measured coordinate there
-        x1 -= x0
-        t = line[:, None] - x0
-        t /= x1
-        y1 -= y0
-        y1 *= t
-        y0 += y1
+        # the projected vertices of each merged face's chain (K, F, 4, N): x along the coordinate the point's
+        # line fixes, y along the one measured; a back vertex (w = −1) moved by the shift, a front one not,
+        # but not a number where the shift is not finite (as 0·shift gives)
+        def projected(chain_coords, shift):
+            v = chain_coords * s[:, None, None, None]
+            v[:, :, 1:3] += shift[:, None, None]
+            bad = ~np.isfinite(shift)
+            if bad.any():
+                v[:, :, 0::3] = np.where(bad[:, None, None], np.nan, v[:, :, 0::3])
+            return v
+        vx = projected(edges["cx"], np.where(front_lr, shift_a, shift_b))
+        vy = projected(edges["cy"], np.where(front_lr, shift_b, shift_a))
+        # each edge from a chain's vertex to the next, (K, F, 3, N): where the line crosses it (t in [0, 1]),
+        # and the measured coordinate there
+        x0, y0 = vx[:, :, :3], vy[:, :, :3]
+        t = line[:, None, None] - x0
+        t /= vx[:, :, 1:] - x0
+        y = vy[:, :, 1:] - y0
+        y *= t
+        y += y0
         crossed = t >= 0  # (NaN and ±inf for edges along the line fail one test or the other)
         crossed &= t <= 1
-        for rows, axis, sg, bounds in edges["seen"]:
+        for f, (axis, sg, bounds) in enumerate(edges["seen"]):
             # a side/top face is seen where its back edge moves outward (σ·shift > 0; σ is ±1); hidden faces
             # image inside the others and are left out (one hidden behind a seen top face would poke out);
             # it bounds only the points `face_edges` allows it
             shift = shift_a if axis == 0 else shift_b
-            crossed[:, rows] &= ((shift > 0 if sg > 0 else shift < 0) & bounds)[:, None]
-        y0 *= front_sign
-        np.copyto(y0, -np.inf, where=~crossed)
-        extent = np.maximum(y0.max(axis=1), front_extent)
+            crossed[:, f] &= ((shift > 0 if sg > 0 else shift < 0) & bounds)[:, None]
+        y *= front_sign
+        np.copyto(y, -np.inf, where=~crossed)
+        extent = np.maximum(y.max(axis=(1, 2)), front_extent)
         return np.where(np.isfinite(extent), along - front_sign * extent, front)
 
     def pixel_weights(x):
@@ -1095,8 +1104,8 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         return x
 
     def side_by_side(calls):
-        """The calls' results, each call(evaluate) given `evaluate` (poses (K, 7), pixel scales (K, N) →
-        `resids`); with LOCKSTEP, run side by side."""
+        """The calls' results, each call(evaluate) given `evaluate` (poses (K, 7), their pixel scales (N,) or
+        (K, N) → `resids`); with LOCKSTEP, run side by side."""
         if LOCKSTEP:
             return _Lockstep(resids).run(calls)
         return [_Lockstep(resids).run([call])[0] for call in calls]
@@ -1119,8 +1128,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             return full(sol.x), sol
 
         if len(starts) > 1:
-            calls = [lambda ev, x0=x0: one(x0, lambda x: ev(x, np.broadcast_to(weight, (len(x), len(weight)))))
-                     for x0 in starts]
+            calls = [lambda ev, x0=x0: one(x0, lambda x: ev(x, weight)) for x0 in starts]
             fits = side_by_side(calls)
         else:
             fits = [one(starts[0])]
@@ -1173,7 +1181,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
                 if abs(t) > lim:
                     break
                 # placed at the scales of the previous turn's pose
-                x = place(x, t, lambda xs, w=w: ev(xs, np.broadcast_to(w, (len(xs), len(w)))))
+                x = place(x, t, lambda xs, w=w: ev(xs, w))
                 w = pixel_weights(x)
                 usable = (w > 0) & (fitted[1] > 0)  # as `costs`: each pose at its own scales, where both have one
                 r = ev(np.stack([x, fitted[0]]), np.stack([np.where(usable, w, 0.0), np.where(usable, fitted[1], 0.0)]))

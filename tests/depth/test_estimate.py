@@ -1516,7 +1516,7 @@ def _batches_spied(monkeypatch):
     real = E._Lockstep.__init__
 
     def spying(self, evaluate):
-        real(self, lambda x, *more: (batches.append(len(x)), evaluate(x, *more))[1])
+        real(self, lambda x, w: (batches.append(len(x)), evaluate(x, w))[1])
     monkeypatch.setattr(E._Lockstep, "__init__", spying)
     return batches
 
@@ -1560,41 +1560,60 @@ def test_exact_explores_its_starts_side_by_side_to_the_same_bits_as_one_by_one(r
 
 
 def test_lockstep_batches_the_waiting_calls_in_order_until_each_ends():
-    """Call k asks k + 1 evaluations of k + 1 rows each: every batch holds, in the calls' order, the
-    pose sets of the calls not yet ended, and each call gets back its own rows."""
+    """Call k asks k + 1 evaluations of k + 1 poses each, at scales of its own: every batch holds, in the
+    calls' order, the poses of the calls not yet ended with a row of scales each (one row for all where
+    one call is left), and each call gets back its own rows."""
     from depth.estimate import _Lockstep
 
     batches = []
 
-    def evaluate(x):
-        batches.append(x[:, 0].copy())
-        return x * 10.0
+    def evaluate(x, w):
+        batches.append((x[:, 0].copy(), w[:, 0].copy()))
+        return x[:, :1] * 10.0 + w[:, :1]
 
     def call(k):
         def run(ev):
-            got = [ev(np.full((k + 1, 7), 100.0 * k + step)) for step in range(k + 1)]
-            return [g[:, 0] for g in got]
+            return [ev(np.full((k + 1, 7), 100.0 * k + step), np.full(3, k / 10.0))[:, 0]
+                    for step in range(k + 1)]
         return run
 
     results = _Lockstep(evaluate).run([call(k) for k in range(3)])
-    assert [list(map(list, r)) for r in results] == [[[100.0 * k * 10 + 10 * step] * (k + 1) for step in range(k + 1)]
-                                                     for k in range(3)]
-    assert [list(b) for b in batches] == [[0.0, 100.0, 100.0, 200.0, 200.0, 200.0],
-                                          [101.0, 101.0, 201.0, 201.0, 201.0],
-                                          [202.0, 202.0, 202.0]]
+    assert [[list(g) for g in r] for r in results] == [
+        [[1000.0 * k + 10.0 * step + k / 10.0] * (k + 1) for step in range(k + 1)] for k in range(3)]
+    assert [(list(x), list(w)) for x, w in batches] == [
+        ([0.0, 100.0, 100.0, 200.0, 200.0, 200.0], [0.0, 0.1, 0.1, 0.2, 0.2, 0.2]),
+        ([101.0, 101.0, 201.0, 201.0, 201.0], [0.1, 0.1, 0.2, 0.2, 0.2]),
+        ([202.0, 202.0, 202.0], [0.2])]  # one call left: its one row of scales
+
+
+def test_lockstep_passes_one_row_of_scales_where_every_call_shares_it():
+    from depth.estimate import _Lockstep
+
+    shapes = []
+    shared = np.arange(4.0)
+
+    def evaluate(x, w):
+        shapes.append(w.shape)
+        return x[:, :4] * 0.0 + w
+
+    out = _Lockstep(evaluate).run([lambda ev: ev(np.ones((2, 7)), shared), lambda ev: ev(np.ones((3, 7)), shared)])
+    assert shapes == [(1, 4)] and all(np.array_equal(o, np.tile(shared, (len(o), 1))) for o in out)
+    per_row = np.arange(8.0).reshape(2, 4)
+    out = _Lockstep(evaluate).run([lambda ev: ev(np.ones((2, 7)), per_row), lambda ev: ev(np.ones((3, 7)), shared)])
+    assert shapes[1:] == [(5, 4)] and np.array_equal(out[0], per_row) and np.array_equal(out[1], np.tile(shared, (3, 1)))
 
 
 def test_lockstep_calls_run_in_the_callers_numpy_error_state_and_raise_their_errors():
     from depth.estimate import _Lockstep
 
     def divide(ev):
-        return float(ev(np.ones((1, 7)))[0, 0] / np.float64(0.0))
+        return float(ev(np.ones((1, 7)), np.ones(2))[0, 0] / np.float64(0.0))
 
     with np.errstate(divide="raise"):
         with pytest.raises(FloatingPointError):
-            _Lockstep(lambda x: x).run([lambda ev: 0.0, divide])
+            _Lockstep(lambda x, w: x).run([lambda ev: 0.0, divide])
     with np.errstate(divide="ignore"):
-        assert _Lockstep(lambda x: x).run([lambda ev: 0.0, divide]) == [0.0, np.inf]
+        assert _Lockstep(lambda x, w: x).run([lambda ev: 0.0, divide]) == [0.0, np.inf]
 
 
 def test_lockstep_evaluates_a_lone_pose_as_a_pair():
@@ -1604,12 +1623,13 @@ def test_lockstep_evaluates_a_lone_pose_as_a_pair():
 
     seen = []
 
-    def evaluate(x):
+    def evaluate(x, w):
         seen.append(x.copy())
         return x + np.arange(len(x))[:, None]
 
-    out = _Lockstep(evaluate).run([lambda ev: ev(np.full((1, 7), 3.0)), lambda ev: ev(np.full((2, 7), 5.0))])
+    _Lockstep(evaluate).run([lambda ev: ev(np.full((1, 7), 3.0), np.ones(2)),
+                             lambda ev: ev(np.full((2, 7), 5.0), np.ones(2))])
     assert [s.shape for s in seen] == [(3, 7)]
-    out = _Lockstep(evaluate).run([lambda ev: ev(np.full((1, 7), 3.0))])
+    out = _Lockstep(evaluate).run([lambda ev: ev(np.full((1, 7), 3.0), np.ones(2))])
     assert [s.shape for s in seen[1:]] == [(2, 7)] and np.array_equal(seen[1], np.full((2, 7), 3.0))
     assert np.array_equal(out[0], np.full((1, 7), 3.0))
