@@ -875,11 +875,12 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         cols = np.arange(n_front)
         chains, seen = [], []
         for f, a, sg in faces[1:]:
+            # a merged face's two front vertices are adjacent: from the one before the back ones, the chain
+            # runs front, back, back, front
             start = next(i for i in range(4) if _VERTS[f[i], 2] == 0 and _VERTS[f[(i + 1) % 4], 2] != 0)
             chains.append([f[(start + j) % 4] for j in range(4)])
             seen.append((a, sg, ~(((a == 1) == front_lr) & (front_sign != sg))))
         chains = np.array(chains, dtype=np.intp).reshape(-1, 4)
-        assert np.array_equal(_VERTS[chains, 2] != 0, np.tile([False, True, True, False], (len(chains), 1)))
         return {"cx": fixed[chains], "cy": measured[chains], "seen": seen,
                 "front_x0": np.stack([fixed[front[k, 0], cols] for k in cross]),
                 "front_run": np.stack([run[k, cols] for k in cross])}

@@ -1633,3 +1633,15 @@ def test_lockstep_evaluates_a_lone_pose_as_a_pair():
     out = _Lockstep(evaluate).run([lambda ev: ev(np.full((1, 7), 3.0), np.ones(2))])
     assert [s.shape for s in seen[1:]] == [(2, 7)] and np.array_equal(seen[1], np.full((2, 7), 3.0))
     assert np.array_equal(out[0], np.full((1, 7), 3.0))
+
+
+def test_every_merged_face_is_a_chain_front_back_back_front():
+    """`contour` moves the middle two vertices of each merged face's chain by the shift and holds the
+    ends: each side and top/bottom face must list its two front vertices (w = 0) next to each other."""
+    from depth.estimate import _FACES, _TOPS, _VERTS
+
+    for face in list(_FACES.values()) + list(_TOPS.values()):
+        w = _VERTS[list(face), 2]
+        assert sorted(w) == [-1.0, -1.0, 0.0, 0.0]
+        front = [i for i in range(4) if w[i] == 0]
+        assert (front[1] - front[0]) % 4 in (1, 3)  # adjacent around the quadrilateral
