@@ -118,8 +118,9 @@ UPRIGHT_MISFIT_PX = 0.25
 """Rms edge misfit (pixels) above which `exact` also tries a face tilted off the vertical."""
 
 LOCKSTEP = True
-"""`exact` explores its starting poses side by side, their evaluations batched (`_Lockstep`); with
-False, one after another (each still through `_Lockstep`, to the same bits)."""
+"""`exact` explores its starting poses, and walks its turn profiles both ways, side by side, their
+evaluations batched (`_Lockstep`); with False, one after another (each still through `_Lockstep`, to the
+same bits)."""
 
 PLACE_NFEV = 8
 """Function evaluations `exact` spends placing the face at each starting turn (centre and size only)."""
@@ -993,8 +994,8 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         """least_squares over the pose parameters `free` (the others held at x_fixed, or with `offset`
         solved as offsets from x_fixed) with a forward-difference Jacobian whose neighbouring poses
         are evaluated in one batched call. With `own_scales` (a mask of the points to use), the pixel
-        scales are re-measured at every pose. `evaluate` (poses (K, 7) → residuals) stands for
-        `resids` at the pixel scales `weight` (`side_by_side`)."""
+        scales are re-measured at every pose. `evaluate` (poses (K, 7) → residuals), given, stands for
+        `resids` at the pixel scales its caller chose (`side_by_side`)."""
         def values(y):
             x = np.zeros((len(y), 7)) if x_fixed is None else np.repeat(x_fixed[None], len(y), axis=0)
             if offset:
@@ -1167,10 +1168,11 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
 
     def walk_turns(x_best, place, lik_scale=None):
         """The turn stepped from x_best outward each way in PROFILE_STEP steps, the face placed at each
-        turn by place(previous pose, turn) at the previous pose's pixel scales: the fit (pose, pixel
-        scales) and per step (pose, pixel scales, cost over the fit's at their common scales). Stops
-        going one way once that ratio, rising, exceeds PROFILE_STOP, or, given `lik_scale`, once the
-        cost exceeds the lowest seen by SIGMA_PROFILE_STOP times it, and the next step does too."""
+        turn by place(previous pose, turn, evaluate), `evaluate` giving the residuals at the previous pose's
+        pixel scales: the fit (pose, pixel scales) and per step (pose, pixel scales, cost over the fit's at
+        their common scales), the steps one way, then the other. Stops going one way once that ratio,
+        rising, exceeds PROFILE_STOP, or, given `lik_scale`, once the cost exceeds the lowest seen by
+        SIGMA_PROFILE_STOP times it, and the next step does too."""
         fitted = (x_best, pixel_weights(x_best))
 
         def walk(direction, ev):
