@@ -1152,19 +1152,17 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         weight = pixel_weights(best[0])
         return solve(free, [best[0]])
 
-    def costs(poses):
+    def costs(poses, evaluate=None):
         """Soft-l1 costs of (x, pixel weights at x) pairs, each at its own pixel scales, over the edge
-        points every one of them can scale (a point's scale can vanish at one pose and not at another)."""
-        nonlocal weight
-        keep = weight
+        points every one of them can scale (a point's scale can vanish at one pose and not at another);
+        the poses evaluated one at a time, or together by `evaluate` (`side_by_side`)."""
         usable = np.logical_and.reduce([w > 0 for _, w in poses])
-        out = []
-        for x, w in poses:
-            weight = np.where(usable, w, 0.0)
-            r = resid(x)
-            out.append(float(np.sum(np.sqrt(1.0 + r ** 2) - 1.0)))
-        weight = keep
-        return out
+        scaled = [(x, np.where(usable, w, 0.0)) for x, w in poses]
+        if evaluate is None:
+            r = [resids(x[None], w[None])[0] for x, w in scaled]
+        else:
+            r = evaluate(np.stack([x for x, _ in scaled]), np.stack([w for _, w in scaled]))
+        return [float(np.sum(np.sqrt(1.0 + ri ** 2) - 1.0)) for ri in r]
 
     def walk_turns(x_best, place, lik_scale=None):
         """The turn stepped from x_best outward each way in PROFILE_STEP steps, the face placed at each
@@ -1186,9 +1184,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
                 # placed at the scales of the previous turn's pose
                 x = place(x, t, lambda xs, w=w: ev(xs, w))
                 w = pixel_weights(x)
-                usable = (w > 0) & (fitted[1] > 0)  # as `costs`: each pose at its own scales, where both have one
-                r = ev(np.stack([x, fitted[0]]), np.stack([np.where(usable, w, 0.0), np.where(usable, fitted[1], 0.0)]))
-                c, c0 = (float(np.sum(np.sqrt(1.0 + ri ** 2) - 1.0)) for ri in r)
+                c, c0 = costs([(x, w), fitted], ev)
                 ratio = c / max(c0, 1e-12)
                 steps.append((x, w, ratio))
                 # one costly turn alone does not stop the walk: where a face merged into the outline comes
