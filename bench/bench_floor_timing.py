@@ -40,11 +40,12 @@ from raytrace.render import keep_freed_memory
 keep_freed_memory()
 # the estimators' modules here, as a process that has reconstructed before has them (since 68, a process's
 # first call imports them in a helper process, its second beside the detection); in a revision without
-# these names, its first, untimed call imports them
+# these names, its first, untimed call imports them (a revision before the seventy-fourth session's also
+# names scipy.ndimage in depth.measure.IMAGE_MODULES)
 with contextlib.suppress(ImportError):
+    import depth.measure
     from depth.estimate import SOLVER_MODULES
-    from depth.measure import IMAGE_MODULES
-    for name in IMAGE_MODULES + SOLVER_MODULES:
+    for name in getattr(depth.measure, "IMAGE_MODULES", ()) + SOLVER_MODULES:
         importlib.import_module(name)
 made = make_scenes(FLOOR_N, FLOOR_SEED)
 out = {}

@@ -30,6 +30,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from typing import Callable
 
+import cv2
 import numpy as np
 
 from depth import ddar
@@ -703,6 +704,18 @@ def expected_work(meas: FaceMeasurement, method: str = "exact") -> float:
     return (1.0 + contour) * (2.0 + len(tb_candidates)) * (1.0 + bool(thin)) * (1.0 + points / 1000.0)
 
 
+_SQUARE3 = np.ones((3, 3), np.uint8)
+
+
+def _deep_pixels(mask: np.ndarray) -> int:
+    """How many pixels of a 2-D bool `mask` lie more than a pixel deep in it: its erosion by a 3×3 square,
+    nothing beyond the array counted in (scipy.ndimage's `binary_erosion`, in OpenCV: the process that
+    estimates the faces then imports no scipy.ndimage)."""
+    eroded = cv2.erode(np.ascontiguousarray(mask).view(np.uint8), _SQUARE3, borderType=cv2.BORDER_CONSTANT,
+                       borderValue=0)
+    return int(np.count_nonzero(eroded))
+
+
 def _silhouette_disagreement(rays: RayFunction, blob_mask: np.ndarray, blob_only: bool = False) -> Callable:
     """A function of a cube (`raytrace.scene.Cube`) giving the number of pixels where its silhouette
     (the pixels whose reflected ray meets it, `Cube.hits`) and the blob disagree more than one pixel
@@ -710,8 +723,6 @@ def _silhouette_disagreement(rays: RayFunction, blob_mask: np.ndarray, blob_only
     part not, whichever pose is right). Pixels within half the blob's size of its bounding box are tested.
     `blob_only`: only the blob's pixels outside the silhouette count (a cube face as bright as what is
     behind it is no part of the blob, so the silhouette's pixels outside the blob say nothing)."""
-    from scipy.ndimage import binary_erosion
-
     ys, xs = np.nonzero(blob_mask)
     h, w = np.ptp(ys) + 1, np.ptp(xs) + 1
     rows = np.arange(max(ys.min() - h // 2, 0), min(ys.max() + 1 + h // 2, blob_mask.shape[0]))
@@ -726,7 +737,7 @@ def _silhouette_disagreement(rays: RayFunction, blob_mask: np.ndarray, blob_only
         hit = np.zeros(len(seen), dtype=bool)
         hit[seen] = cube.hits(origins, directions)
         off = inside & ~hit if blob_only else hit != inside
-        return int(binary_erosion(off.reshape(yy.shape), np.ones((3, 3), dtype=bool)).sum())
+        return _deep_pixels(off.reshape(yy.shape))
     return disagreement
 
 

@@ -8,6 +8,15 @@ or a falsy `FailedMeasurement`).
 Pixel coordinates are (u, v) = (column, row); pixel (0, 0) is the centre of the top-left
 pixel. Images are sRGB-encoded float64 in [0, 1]; edges are located on linearised values
 because renderers and cameras mix radiance linearly across a pixel.
+
+No scipy module is imported here but scipy.optimize and scipy.special, by the edge-spread fit where it
+runs: they are among the estimators' modules (`depth.estimate.SOLVER_MODULES`), which a fresh
+`catadioptric reconstruct` imports in the process that will outline and estimate the faces while it
+detects the cubes (`depth.workers.fork_helper`), and outlining waits for them. scipy.ndimage's filters
+are computed in numpy and OpenCV instead: to the bit where a face is outlined (`_bilinear`, `_median5`,
+`_gaussian_smoothed`), with scipy's weights in the detection (`_smoothed_gradient`, `_circular_smooth`).
+Imported, scipy.ndimage took 0.08–0.09 s of that process's imports after the solver's modules, and the
+`import scipy` this module held took 0.03–0.04 s of the command's own before it forks the process.
 """
 
 from __future__ import annotations
@@ -19,7 +28,6 @@ from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
-import scipy  # scipy.ndimage is imported at its first use: see IMAGE_MODULES
 
 from depth.errors import DepthError
 
@@ -39,15 +47,6 @@ __all__ = [
 ]
 
 SIDE_NAMES = ("left", "right", "top", "bottom")
-
-IMAGE_MODULES = ("scipy.ndimage",)
-"""The scipy modules this module needs, imported at their first use rather than with it: in a fresh
-`catadioptric reconstruct` scipy.ndimage took 0.3 s of the import time, which
-`depth.reconstruct.reconstruct` spends while it detects the cubes, in the process that will outline
-the faces (`depth.workers.fork_helper`). `detect_cubes` itself uses none of them (its Gaussian
-smoothing and gradients are OpenCV's and numpy's with scipy's weights: `_smoothed_gradient`,
-`_circular_smooth`)."""
-
 
 # ----------------------------------------------------------------------------- results
 
@@ -1024,8 +1023,8 @@ def _gaussian_kernel(sigma: float) -> np.ndarray:
 
 
 def _circular_smooth(hist: np.ndarray, sigma: float) -> np.ndarray:
-    """`scipy.ndimage.gaussian_filter1d(hist, sigma, mode="wrap")`, in numpy (the detection imports no
-    scipy module: `IMAGE_MODULES`)."""
+    """`scipy.ndimage.gaussian_filter1d(hist, sigma, mode="wrap")`, in numpy (this module imports no
+    scipy.ndimage)."""
     k = _gaussian_kernel(sigma)
     r = len(k) // 2
     padded = np.asarray(hist, dtype=np.float64)[np.arange(-r, len(hist) + r) % len(hist)]
@@ -2066,7 +2065,7 @@ def _initial_model(mask: np.ndarray):
     if not contours:
         return FailedMeasurement("face mask has no outline")
     contour = max(contours, key=len)[:, 0, :].astype(np.float64)  # (N, 2) u, v
-    smooth = scipy.ndimage.gaussian_filter(mask.astype(np.float64), 1.5)
+    smooth = _gaussian_smoothed(mask.astype(np.float64), 1.5)
     gv, gu = np.gradient(smooth)
     ci = contour.astype(int)
     g = np.stack([gu[ci[:, 1], ci[:, 0]], gv[ci[:, 1], ci[:, 0]]], axis=1)
@@ -2134,14 +2133,64 @@ def _corners(lines: np.ndarray, quads: np.ndarray):
 
 
 def _bilinear(img: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Bilinear samples of (h, w, C) img at (u, v) → (..., C)."""
-    coords = np.stack([v.ravel(), u.ravel()])
-    channels = img.shape[-1]
-    out = np.stack(
-        [scipy.ndimage.map_coordinates(img[..., c], coords, order=1, mode="nearest") for c in range(channels)],
-        axis=-1,
-    )
-    return out.reshape(u.shape + (channels,))
+    """Bilinear samples of a float64 (h, w, C) img at (u, v) → (..., C): every channel at once, to the bit
+    what `scipy.ndimage.map_coordinates(img[..., c], [v, u], order=1, mode="nearest")` gives channel by
+    channel (this module imports no scipy.ndimage). As scipy computes it: the weights of the two
+    pixels about a coordinate x are 1 − (x − ⌊x⌋) and 1 minus that; a pixel beyond the image is the nearest
+    one on its edge (so a coordinate beyond it samples the edge); each tap is (value · row weight) · column
+    weight, the taps summed from 0 in raster order; a coordinate not finite samples NaN."""
+    h, w = img.shape[:2]
+
+    def taps(coord, n):
+        c = coord.ravel()
+        finite = np.isfinite(c)
+        c = np.where(finite, c, 0.0)
+        start = np.floor(c)
+        w0 = 1.0 - (c - start)
+        w0[~finite] = np.nan
+        i0 = start.astype(np.intp)
+        return np.clip(i0, 0, n - 1), np.clip(i0 + 1, 0, n - 1), w0[:, None], (1.0 - w0)[:, None]
+
+    y0, y1, wy0, wy1 = taps(v, h)
+    x0, x1, wx0, wx1 = taps(u, w)
+    out = 0.0 + img[y0, x0] * wy0 * wx0
+    out += img[y0, x1] * wy0 * wx1
+    out += img[y1, x0] * wy1 * wx0
+    out += img[y1, x1] * wy1 * wx1
+    return out.reshape(u.shape + (img.shape[-1],))
+
+
+def _median5(levels: np.ndarray) -> np.ndarray:
+    """Levels (N, ...) median-filtered over 5 neighbours along the first axis, the ends repeated beyond it:
+    `scipy.ndimage.median_filter(levels, size=(5, 1, ...), mode="nearest")`, which selects as this does."""
+    n = len(levels)
+    near = np.clip(np.arange(n)[:, None] + np.arange(-2, 3), 0, n - 1)  # (N, 5)
+    return np.partition(levels[near], 2, axis=1)[:, 2]
+
+
+def _gaussian_smoothed(image: np.ndarray, sigma: float) -> np.ndarray:
+    """`scipy.ndimage.gaussian_filter(image, sigma)` of a 2-D float64 image, to the bit: its weights
+    (`_gaussian_kernel`) correlated along the rows' axis, then the columns', each with the image reflected
+    beyond its edges (d c b a | a b c d | d c b a) and summed as scipy's symmetric kernels are, the centre
+    tap first, then the pairs of taps from the farthest in."""
+    k = _gaussian_kernel(sigma)
+    r = len(k) // 2
+    out = np.asarray(image, dtype=np.float64)
+    for axis in (0, 1):
+        n = out.shape[axis]
+        idx = np.arange(-r, n + r)
+        period = 2 * n  # reflection: d c b a | a b c d | d c b a, repeated
+        idx = np.mod(idx, period)
+        idx = np.where(idx >= n, period - 1 - idx, idx)
+        line = np.take(out, idx, axis=axis)
+
+        def tap(j):
+            return np.take(line, np.arange(r + j, r + j + n), axis=axis)
+        acc = tap(0) * k[r]
+        for j in range(r, 0, -1):
+            acc += (tap(-j) + tap(j)) * k[r - j]
+        out = acc
+    return out
 
 
 _MIN_TB_POINTS = 3  # fewest edge points fitted on a top or bottom side (a line through them)
@@ -2202,7 +2251,7 @@ def _along_side(levels: np.ndarray) -> np.ndarray:
     yet keeps the steps of a textured background); as they are for fewer than 5 points."""
     if len(levels) < 5:
         return levels
-    return scipy.ndimage.median_filter(levels, size=(5,) + (1,) * (levels.ndim - 1), mode="nearest")
+    return _median5(levels)
 
 
 def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25, colour_half_width=None,
@@ -2593,7 +2642,7 @@ def _level_along(linear, t_st, foot, n, dist):
     """Colour sampled at distance `dist` along n from foot points (S, 2), median over 5 stations."""
     c = _bilinear(linear, foot[:, 0] + dist * n[0], foot[:, 1] + dist * n[1])
     if len(c) >= 5:
-        c = scipy.ndimage.median_filter(c, size=(5, 1), mode="nearest")
+        c = _median5(c)
     return c
 
 

@@ -334,7 +334,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     workers : int >= 1, optional — processes the faces are outlined and estimated in (forked,
         `depth.workers.fork_map`); default: every available core. The results do not depend on it.
     """
-    from depth.measure import BLUR_DOMAINS, IMAGE_MODULES, checked_images
+    from depth.measure import BLUR_DOMAINS, checked_images
 
     if method not in ALL_METHODS:
         raise DepthError(f"method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
@@ -360,9 +360,9 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     # imports nothing meanwhile but these), so that a process calling again (a script looping over images)
     # has them from its second call on rather than forking a helper that imports them again each time.
     global _HELPER_FORKED
-    helper = None if _HELPER_FORKED else fork_helper(faces, IMAGE_MODULES + SOLVER_MODULES)
+    helper = None if _HELPER_FORKED else fork_helper(faces, SOLVER_MODULES)
     _HELPER_FORKED = _HELPER_FORKED or helper is not None
-    scipy_imported = import_in_background(IMAGE_MODULES + SOLVER_MODULES) if helper is None else None
+    scipy_imported = import_in_background(SOLVER_MODULES) if helper is None else None
     # checked here once: not again by each face's outline, silhouette, blur evidence and regrowth
     try:
         with checked_images(img, det_img):

@@ -721,6 +721,21 @@ def test_silhouette_disagreement_against_embree_hits():
     assert SILHOUETTE_MARGIN_PX <= off(moved(0.05)) < off(moved(0.2))
 
 
+@settings(max_examples=200, deadline=None)
+@given(st.integers(1, 30), st.integers(1, 30), st.floats(0.0, 1.0), st.integers(0, 2**32 - 1))
+def test_deep_pixels_count_scipy_binary_erosion(height, width, density, seed):
+    """`_deep_pixels` (OpenCV's erosion, nothing beyond the array) against `scipy.ndimage.binary_erosion` by a
+    3×3 square, on random masks down to one pixel wide: a pixel on the array's edge is never deep."""
+    import scipy.ndimage
+
+    from depth.estimate import _deep_pixels
+
+    mask = np.random.default_rng(seed).random((height, width)) < density
+    want = int(scipy.ndimage.binary_erosion(mask, np.ones((3, 3), dtype=bool)).sum())
+    assert _deep_pixels(mask) == want
+    assert _deep_pixels(np.ones((height, width), dtype=bool)) == max(height - 2, 0) * max(width - 2, 0)
+
+
 def test_silhouette_disagreement_of_the_blob_alone():
     """With `blob_only`, only the blob's pixels outside the cube count: on the Embree render's blob of
     the true cube, an 8 × 8 px hole cut inside it (a face as bright as what is behind it, no part of the

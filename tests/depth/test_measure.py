@@ -495,6 +495,78 @@ def test_holes_are_filled_as_scipy_fills_them(height, width, density, seed):
         np.testing.assert_array_equal(_holes_filled(mask), scipy.ndimage.binary_fill_holes(mask))
 
 
+def _same_bits(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Per element: the same float64 bits, or both NaN (a NaN's payload and sign say nothing)."""
+    return (np.asarray(a).view(np.uint64) == np.asarray(b).view(np.uint64)) | (np.isnan(a) & np.isnan(b))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(1, 12), st.integers(1, 12), st.integers(1, 4), st.integers(1, 60), st.sampled_from([1e-3, 1.0, 1e3]),
+       st.booleans(), st.integers(0, 2**32 - 1))
+def test_bilinear_samples_to_the_bit_what_scipy_map_coordinates_samples(height, width, channels, n, scale, flipped,
+                                                                        seed):
+    """`_bilinear` (numpy, every channel at once) against `scipy.ndimage.map_coordinates(order=1,
+    mode="nearest")` channel by channel, bit for bit: coordinates inside the image, beyond its edges, on
+    whole pixels, on its last row and column, not finite; images of one row or column; a window of an
+    image (not contiguous)."""
+    import scipy.ndimage
+
+    from depth.measure import _bilinear
+
+    rng = np.random.default_rng(seed)
+    img = rng.random((height, width, channels)) * scale
+    if flipped:
+        img = img[:, ::-1]
+    u, v = rng.uniform(-3.0, width + 2.0, n), rng.uniform(-3.0, height + 2.0, n)
+    pick = rng.integers(0, 7, n)
+    u[pick == 1], v[pick == 2] = np.round(u[pick == 1]), np.round(v[pick == 2])
+    u[pick == 3], v[pick == 4] = width - 1.0, height - 1.0
+    u[pick == 5] = rng.choice([np.nan, np.inf, -np.inf], np.count_nonzero(pick == 5))
+    v[pick == 6] = rng.choice([np.nan, np.inf, -np.inf], np.count_nonzero(pick == 6))
+    want = np.stack([scipy.ndimage.map_coordinates(img[..., c], np.stack([v, u]), order=1, mode="nearest")
+                     for c in range(channels)], axis=-1)
+    got = _bilinear(img, u, v)
+    assert got.shape == want.shape
+    assert _same_bits(got, want).all()
+    grid = _bilinear(img, u.reshape(-1, 1)[:1].repeat(2, axis=1), v.reshape(-1, 1)[:1].repeat(2, axis=1))
+    assert grid.shape == (1, 2, channels)  # (..., C) for coordinates of any shape
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(5, 40), st.lists(st.integers(1, 3), max_size=2), st.booleans(), st.integers(0, 2**32 - 1))
+def test_median5_selects_what_scipy_median_filter_selects(n, trailing, ties, seed):
+    """`_median5` against `scipy.ndimage.median_filter(size=(5, 1, ...), mode="nearest")`, element for
+    element, on levels with and without ties."""
+    import scipy.ndimage
+
+    from depth.measure import _median5
+
+    rng = np.random.default_rng(seed)
+    levels = rng.random((n, *trailing))
+    if ties:
+        levels = np.round(levels * 4.0) / 4.0
+    want = scipy.ndimage.median_filter(levels, size=(5,) + (1,) * len(trailing), mode="nearest")
+    np.testing.assert_array_equal(_median5(levels), want)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(1, 40), st.integers(1, 40), st.sampled_from([0.7, 1.0, 1.5, 2.0]), st.booleans(),
+       st.integers(0, 2**32 - 1))
+def test_gaussian_smoothed_is_scipy_gaussian_filter_to_the_bit(height, width, sigma, binary, seed):
+    """`_gaussian_smoothed` against `scipy.ndimage.gaussian_filter`, bit for bit, on masks (as
+    `_initial_model` smooths) and on random images, down to one pixel wide: narrower than the kernel,
+    whose reflection beyond the edges then repeats."""
+    import scipy.ndimage
+
+    from depth.measure import _gaussian_smoothed
+
+    rng = np.random.default_rng(seed)
+    image = rng.random((height, width))
+    if binary:
+        image = (image < rng.random()).astype(np.float64)
+    assert _same_bits(_gaussian_smoothed(image, sigma), scipy.ndimage.gaussian_filter(image, sigma)).all()
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2, 3])
 def test_a_white_face_whose_faint_blue_step_jpeg_smears_is_regrown_at_the_fainter_steps(seed):
     """A white cube before a warm sky ("warm ramp") that its face matches in red: the face differs from
