@@ -2334,6 +2334,24 @@ def test_nearest_pixel_of_a_mask_is_at_the_euclidean_distance(seed, density):
     assert np.all(got <= exact * 1.04 + 1e-9)
 
 
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.floats(0.002, 0.5), st.integers(1, 4))
+def test_nearest_means_are_the_3x3_means_at_the_nearest_pixels(seed, density, channels):
+    """`_nearest_means`, which takes each distinct nearest pixel's 3 × 3 mean once, gives bit for bit the
+    `_mean3x3` of every pixel's nearest mask pixel (`_nearest`) taken one by one, on random masks and images
+    (the mask's pixels on the image's edge included)."""
+    from depth.measure import _mean3x3, _nearest, _nearest_means
+    rng = np.random.default_rng(seed)
+    mask = rng.random((37, 53)) < density
+    mask[rng.integers(37), rng.integers(53)] = True
+    where = ~mask | (rng.random(mask.shape) < 0.1)
+    img = rng.random((37, 53, channels))
+    want = np.array([_mean3x3(img, [i])[0] for i in _nearest(mask, where)])
+    got = _nearest_means(img, mask, where)
+    assert got.shape == want.shape
+    np.testing.assert_array_equal(got.view(np.uint64), want.view(np.uint64))
+
+
 @settings(max_examples=60, deadline=None)
 @given(st.floats(0.0, 1.0), st.floats(-1.0, 1.0), st.floats(20.0, 120.0), st.booleans(), st.booleans())
 def test_one_phase_tells_a_side_along_the_pixel_grid_from_a_leaning_one(phase, lean, length, vertical, noisy):
