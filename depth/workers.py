@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import importlib
+import mmap
 import multiprocessing
 import os
 import signal
@@ -26,9 +27,12 @@ from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from multiprocessing.reduction import ForkingPickler
 
+import numpy as np
+
 from raytrace.render import keep_freed_memory, single_threaded_blas
 
-__all__ = ["available_cores", "fork_map", "fork_helper", "Helper", "Inbox", "import_in_background"]
+__all__ = ["available_cores", "fork_map", "fork_helper", "will_fork_helper", "shared_array", "Helper", "Inbox",
+           "import_in_background"]
 
 _TASK = None  # the running `fork_map`'s task, inherited by its workers when they fork
 _LOCK = threading.Lock()  # one `fork_map` pool at a time per process (it owns `_TASK`)
@@ -265,6 +269,22 @@ def _own_group(pid: int) -> None:
     runs first does it."""
     with contextlib.suppress(OSError):  # already done by the other side, or the helper has ended
         os.setpgid(pid, pid)
+
+
+def will_fork_helper(modules) -> bool:
+    """Whether `fork_helper(task, modules)` called now would fork a helper (some of `modules` are not
+    imported yet, and this process can fork)."""
+    return any(name not in sys.modules for name in modules) and _can_fork()
+
+
+def shared_array(shape, dtype) -> np.ndarray:
+    """A zeroed array in memory shared with the processes forked after it is made (an anonymous shared
+    mapping): what this process writes into it, even after the fork, they read. `depth.reconstruct` forks its
+    helper before it converts the image into one."""
+    dtype = np.dtype(dtype)
+    size = int(np.prod(shape)) * dtype.itemsize
+    buffer = mmap.mmap(-1, max(size, 1))  # anonymous: shared with forked processes (MAP_SHARED on Unix)
+    return np.frombuffer(buffer, dtype=dtype, count=int(np.prod(shape))).reshape(shape)
 
 
 def fork_helper(task, modules) -> Helper | None:

@@ -507,10 +507,14 @@ def test_a_white_cube_as_noisy_as_a_path_tracers_is_found_whole(seed):
     assert abs(cube.depth - truth["depth"]) < 3.0 * cube.depth_std
 
 
-def test_the_faces_outlined_in_a_helper_process_give_the_results_of_this_one(scene, tmp_path, monkeypatch):
+@pytest.mark.parametrize("compressed", [False, True])
+def test_the_faces_outlined_in_a_helper_process_give_the_results_of_this_one(scene, tmp_path, monkeypatch, compressed):
     # A fresh process forks a helper that imports the estimators' modules while this one detects the cubes,
     # then outlines and estimates the faces (`depth.workers.fork_helper`). Here those modules are imported
-    # already, so a module not yet imported is added to the list to make `reconstruct` fork one.
+    # already, so a module not yet imported is added to the list to make `reconstruct` fork one. The helper
+    # is forked before the 8-bit image is converted (and, read as JPEG, despeckled) into memory it shares
+    # with this process (`depth.workers.shared_array`); the second and third calls convert it as
+    # `check_image` and `despeckled` do, in memory of their own.
     import sys
 
     import depth.reconstruct as dr
@@ -519,7 +523,8 @@ def test_the_faces_outlined_in_a_helper_process_give_the_results_of_this_one(sce
     camera, mirror = setup.camera.build(), setup.mirror.build()
     img = cv2.cvtColor(cv2.imread(str(scene / "mirror.png")), cv2.COLOR_BGR2RGB)
     calls = {"here": [], "helper": []}
-    here = dr.reconstruct(img, camera, mirror, progress=lambda d, t: calls["here"].append((d, t)))
+    here = dr.reconstruct(img, camera, mirror, compressed=compressed,
+                          progress=lambda d, t: calls["here"].append((d, t)))
     (tmp_path / "not_yet_imported.py").write_text("")
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.delitem(sys.modules, "not_yet_imported", raising=False)
@@ -528,11 +533,17 @@ def test_the_faces_outlined_in_a_helper_process_give_the_results_of_this_one(sce
     forked = []
     real = dr.fork_helper
     monkeypatch.setattr(dr, "fork_helper", lambda *a: forked.append(real(*a)) or forked[-1])
-    there = dr.reconstruct(img, camera, mirror, progress=lambda d, t: calls["helper"].append((d, t)))
+    shared = []
+    real_shared = dr.shared_array
+    monkeypatch.setattr(dr, "shared_array", lambda *a: shared.append(real_shared(*a)) or shared[-1])
+    there = dr.reconstruct(img, camera, mirror, compressed=compressed,
+                           progress=lambda d, t: calls["helper"].append((d, t)))
     assert len(forked) == 1 and forked[0] is not None and forked[0]._process is None  # it ran and was closed
+    assert len(shared) == 1 + compressed  # the image, and the despeckled one
     assert "not_yet_imported" not in sys.modules
     # a second call in this process forks no helper again: it imports the modules here, beside the detection
-    again = dr.reconstruct(img, camera, mirror)
+    again = dr.reconstruct(img, camera, mirror, compressed=compressed)
+    assert len(shared) == 1 + compressed
     assert len(forked) == 1 and "not_yet_imported" in sys.modules
     assert [c.estimate.center.tolist() for c in again.cubes] == [c.estimate.center.tolist() for c in here.cubes]
     assert len(here.cubes) == len(there.cubes) == 2

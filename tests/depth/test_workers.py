@@ -185,6 +185,27 @@ def test_a_payload_larger_than_the_pipe_is_sent_without_waiting_for_the_helper_t
     assert helper.run("rest") == (True, 4_000_000, "rest")
 
 
+def test_a_shared_array_written_after_the_fork_is_read_by_the_forked_process(tmp_path, monkeypatch):
+    """What this process writes into a `shared_array` after forking a helper, before sending its payload,
+    the helper reads (an ordinary array written then it would not see: it has its own copy); and
+    `will_fork_helper` says beforehand whether `fork_helper` forks."""
+    from depth.workers import fork_helper, shared_array, will_fork_helper
+    _fresh_module(tmp_path, monkeypatch, "helper_mod_shared")
+    image = shared_array((3, 4, 2), np.float64)
+    private = np.zeros((3, 4, 2))
+    assert image.shape == (3, 4, 2) and image.dtype == np.float64 and not image.any()
+
+    def task(payload, progress, inbox):
+        return float(image[payload]), float(private[payload])
+
+    assert not will_fork_helper(["numpy"]) and fork_helper(task, ["numpy"]) is None
+    assert will_fork_helper(["helper_mod_shared", "numpy"])
+    helper = fork_helper(task, ["helper_mod_shared", "numpy"])
+    assert helper is not None
+    image[2, 1, 0] = private[2, 1, 0] = 0.25
+    assert helper.run((2, 1, 0)) == (0.25, 0.0)
+
+
 def test_no_helper_where_every_module_is_imported_already():
     from depth.workers import fork_helper
     assert fork_helper(lambda payload, progress, inbox: payload, ["numpy", "os"]) is None
