@@ -166,6 +166,13 @@ class CylinderMirror:
         t = np.where(v0, t0, t1)
         return self._finish(ol, dl, t, v0 | v1)
 
+    def hits(self, origins, directions) -> np.ndarray:
+        """(N,) bool: `intersect`'s `hit` alone, without its points and normals (`raytrace.truth.mirror_mask`
+        asks only this of the pixels it traces)."""
+        o, d = as_rays(origins, directions)
+        *_, v0, v1 = self._local_roots(o, d)
+        return v0 | v1
+
     def first_hits(self, o: np.ndarray, d: np.ndarray):
         """Renderer fast path of `intersect`: rows that hit, with their exact float64 hits.
 

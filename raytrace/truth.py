@@ -64,11 +64,12 @@ def mirror_mask(camera, mirror, block: int = 8) -> np.ndarray:
     cylinder's image is a smooth region many blocks wide.
     """
     w, h = camera.resolution
+    hits = getattr(mirror, "hits", None) or (lambda o, d: mirror.intersect(o, d)[1])  # the hit test alone, where it has one
     gx = np.arange(0, w + block, block).clip(max=w - 1).astype(np.float64)
     gy = np.arange(0, h + block, block).clip(max=h - 1).astype(np.float64)
     uu, vv = np.meshgrid(gx, gy)
     o, d = camera.rays(np.column_stack([uu.ravel(), vv.ravel()]))
-    corner_hit = mirror.intersect(o, d)[1].reshape(len(gy), len(gx))
+    corner_hit = hits(o, d).reshape(len(gy), len(gx))
     # A block is uniform when its four corners agree; mixed blocks and their neighbours are traced.
     c = corner_hit
     all_in = c[:-1, :-1] & c[1:, :-1] & c[:-1, 1:] & c[1:, 1:]
@@ -89,7 +90,7 @@ def mirror_mask(camera, mirror, block: int = 8) -> np.ndarray:
         keep = (py < h) & (px < w)
         py, px = py[keep], px[keep]
         o, d = camera.rays(np.column_stack([px, py]).astype(np.float64))
-        mask[py, px] = mirror.intersect(o, d)[1]
+        mask[py, px] = hits(o, d)
     return mask
 
 

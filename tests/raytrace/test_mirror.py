@@ -60,6 +60,23 @@ def test_cylinder_intersect_matches_ray_marching():
     assert np.all(np.isnan(p[~hit])) and np.all(np.isinf(t[~hit]))
 
 
+@given(seed=st.integers(0, 2**32 - 1), spread=st.floats(0.02, 0.3))
+@settings(max_examples=50, deadline=None)
+def test_cylinder_hits_is_intersects_hit(seed, spread):
+    """`hits` (the hit test alone) against `intersect`'s `hit`, ray for ray: rays from outside and from
+    inside the cylinder, toward its surface, past its rims, along its axis and grazing it."""
+    m = _tilted_cylinder()
+    rng = np.random.default_rng(seed)
+    o = rng.normal(size=(300, 3)) * 0.05 + [0.0, 0.0, 0.6]
+    o[:30] = rng.normal(size=(30, 3)) * 0.02 + m.center
+    d = rng.normal(size=(300, 3)) * spread + m.center - o
+    d[30:40] = m.axis  # along the axis: through the open ends
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    hit = m.intersect(o, d)[1]
+    assert 0 < hit.sum() < len(hit)
+    np.testing.assert_array_equal(m.hits(o, d), hit)
+
+
 def test_cylinder_height_and_open_ends():
     m = CylinderMirror(0.1, 0.2, [0, 0, 0], [0, 0, 1])
     # straight down the axis through the open ends: no hit
