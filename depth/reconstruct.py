@@ -388,7 +388,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     try:
         with checked_images(img, det_img):
             return _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, compressed, blur_domain,
-                                workers, scipy_imported, helper)
+                                workers, scipy_imported, helper, raw)
     finally:
         if helper is not None:
             helper.close()
@@ -431,9 +431,10 @@ def _unpacked(packed, shape) -> list:
 
 
 def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, compressed, blur_domain, workers,
-                 scipy_imported, helper) -> Reconstruction:
-    """`reconstruct` of its checked image `img` (and `det_img`, the one cubes are detected on): the mirror
-    region and the cubes detected in it here; their faces by the helper, where there is one, else here."""
+                 scipy_imported, helper, raw=None) -> Reconstruction:
+    """`reconstruct` of its checked image `img` (and `det_img`, the one cubes are detected on; `raw`, the image
+    as it was given): the mirror region and the cubes detected in it here; their faces by the helper, where
+    there is one, else here."""
     from raytrace.truth import mirror_mask
     from depth.measure import detect_cubes
 
@@ -441,12 +442,15 @@ def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, comp
     if not mask.any():
         raise DepthError("image: the setup's camera sees no mirror")
     # the largest per-channel spread over the mirror (minMaxLoc: ~5× faster than gathering the pixels),
-    # each channel copied over the mirror's bounding box only
+    # each channel copied over the mirror's bounding box only; of an 8-bit image's own values where it was
+    # one (`raw`: an eighth of the bytes to copy, 0.03 s less at 2048×1536), whose extremes / 255 are the
+    # converted image's to the bit
     rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
     box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
     in_box = np.ascontiguousarray(mask[box]).view(np.uint8)
-    spread = max(hi - lo for lo, hi, _, _ in (cv2.minMaxLoc(np.ascontiguousarray(img[box + (k,)]), in_box)
-                                             for k in range(3)))
+    source, unit = (raw, 255.0) if raw is not None and raw.dtype == np.uint8 else (img, 1.0)
+    spread = max(hi / unit - lo / unit for lo, hi, _, _ in (
+        cv2.minMaxLoc(np.ascontiguousarray(source[box + (k,)]), in_box) for k in range(3)))
     if spread < 2.0 / 255.0:
         raise DepthError("image: no mirror content (the mirror region is uniform)")
     if helper is not None:

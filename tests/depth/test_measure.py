@@ -2334,6 +2334,32 @@ def test_nearest_pixel_of_a_mask_is_at_the_euclidean_distance(seed, density):
     assert np.all(got <= exact * 1.04 + 1e-9)
 
 
+@pytest.mark.parametrize("low, high", [(0, 1), (0, 2), (1, 3), (2, 4), (100, 102), (253, 255), (254, 255)])
+def test_an_8_bit_image_is_told_empty_as_its_float_values_are(rig, low, high):
+    """The mirror's spread is read on an 8-bit image's own values (its extremes / 255): the same verdict as
+    on the image converted to float, at spreads of one and two levels (the limit, 2/255), one pixel of
+    the mirror `high` in one channel and the rest `low`."""
+    from depth.reconstruct import reconstruct
+    from raytrace.truth import mirror_mask
+
+    mask = mirror_mask(rig.camera, rig.mirror)
+    w, h = rig.camera.resolution
+    img = np.full((h, w, 3), low, dtype=np.uint8)
+    ys, xs = np.nonzero(mask)
+    img[ys[len(ys) // 2], xs[len(ys) // 2], 1] = high
+
+    def verdict(image):
+        try:
+            reconstruct(image, rig.camera, rig.mirror)
+        except DepthError as exc:
+            assert "no mirror content" in str(exc)
+            return "empty"
+        return "searched"
+    assert verdict(img) == verdict(img.astype(np.float64) / 255.0)
+    if high - low == 1:
+        assert verdict(img) == "empty"
+
+
 @settings(max_examples=40, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.floats(0.002, 0.5), st.integers(1, 4))
 def test_nearest_means_are_the_3x3_means_at_the_nearest_pixels(seed, density, channels):
