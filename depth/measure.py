@@ -745,7 +745,8 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
         far_thin = thin & (dist > 3.0) & (dist <= _band_reach(close_px))
         band &= dist <= (_band_reach(close_px) if far_thin.any() else 3.0)
         off = np.zeros_like(band)
-        # (the band's pixels taken by flat index: a boolean mask's gather from the (H, W, 3) window took 4 times as long)
+        # (the band's pixels taken by flat index: a boolean mask's gather from the (H, W, 3) window took 4 times
+        # as long)
         colours = np.take(rgb.reshape(-1, 3), np.flatnonzero(band), axis=0)
         off[band] = np.abs(colours - _nearest_means(rgb, background, band)).max(axis=1) > level
         strips = off & thin & (dist > 3.0)
@@ -2149,10 +2150,10 @@ def _corners(lines: np.ndarray, quads: np.ndarray):
 def _bilinear(img: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Bilinear samples of a float64 (h, w, C) img at (u, v) → (..., C): every channel at once, to the bit
     what `scipy.ndimage.map_coordinates(img[..., c], [v, u], order=1, mode="nearest")` gives channel by
-    channel (this module imports no scipy.ndimage). As scipy computes it: the weights of the two
-    pixels about a coordinate x are 1 − (x − ⌊x⌋) and 1 minus that; a pixel beyond the image is the nearest
-    one on its edge (so a coordinate beyond it samples the edge); each tap is (value · row weight) · column
-    weight, the taps summed from 0 in raster order; a coordinate not finite samples NaN."""
+    channel (this module imports no scipy.ndimage). As scipy computes it: the weights of the two pixels
+    about a coordinate x are 1 − (x − ⌊x⌋) and 1 minus that; a pixel beyond the image is the nearest one
+    on its edge (so a coordinate beyond it samples the edge pixel, to rounding); each tap is (value · row
+    weight) · column weight, the taps summed from 0 in raster order; a coordinate not finite samples NaN."""
     h, w = img.shape[:2]
 
     def taps(coord, n):

@@ -64,7 +64,8 @@ def mirror_mask(camera, mirror, block: int = 8) -> np.ndarray:
     cylinder's image is a smooth region many blocks wide.
     """
     w, h = camera.resolution
-    hits = getattr(mirror, "hits", None) or (lambda o, d: mirror.intersect(o, d)[1])  # the hit test alone, where it has one
+    # the mirror's hit test alone where it has one (`CylinderMirror.hits`), else `intersect`'s
+    hits = getattr(mirror, "hits", None) or (lambda o, d: mirror.intersect(o, d)[1])
     gx = np.arange(0, w + block, block).clip(max=w - 1).astype(np.float64)
     gy = np.arange(0, h + block, block).clip(max=h - 1).astype(np.float64)
     uu, vv = np.meshgrid(gx, gy)
