@@ -9,11 +9,20 @@ their ratio comes from one run. It also says whether both revisions write the sa
 
 Run: ``python -m bench command_timing [--against=REV] [--rounds=N]`` (the ``=`` is needed, as for
 ``floor_timing``). The renders come from bench/out/renders (made by our renderer when missing).
+
+``--instructions`` counts instead of timing: each image's command once per revision under Valgrind's
+callgrind (every process it forks followed), the user-space instructions of all its processes summed, and
+the ratio per image. On this VM wall and CPU times of one command vary by 10–20 % from run to run, which
+hides a change of a few per cent; instruction counts repeat to a small fraction of that. They leave out
+the kernel's work (page faults, forks: a sixth of the command's CPU) and weigh every instruction alike,
+so they say whether a change does less work, not how much sooner the command ends. Needs ``valgrind``
+(apt); about 2 minutes an image and revision, the two revisions side by side.
 """
 
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -64,6 +73,52 @@ def _result(path: Path) -> str:
     return json.dumps([data["cubes"], data["refused"]], sort_keys=True)
 
 
+def _instructions(root: Path, png: Path, out: Path, tmp: Path) -> subprocess.Popen:
+    """The started callgrind run of one fresh `catadioptric reconstruct` under `root` (see `_collected`)."""
+    tag = f"{png.stem}.{root.name}"
+    return subprocess.Popen(["valgrind", "--tool=callgrind", "--trace-children=yes",
+                             f"--callgrind-out-file={tmp / tag}.%p.callgrind", sys.executable, "-c", _CONSOLE,
+                             "reconstruct", str(png), "-o", str(out)],
+                            cwd=root, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+
+def _collected(run: subprocess.Popen, what: str) -> int:
+    """The user-space instructions callgrind collected over every process of a finished `_instructions` run
+    (its "Collected : N" lines, one a process)."""
+    _, err = run.communicate()
+    if run.returncode != 0:
+        tail = [line for line in err.strip().splitlines() if "Collected" not in line][-1:] or ["(no message)"]
+        raise SystemExit(f"bench command_timing: --instructions: {what} failed: {tail[0]}")
+    counts = [int(line.split(":")[-1].replace(",", "")) for line in err.splitlines() if "Collected :" in line]
+    if not counts:
+        raise SystemExit(f"bench command_timing: --instructions: {what}: callgrind reported no count")
+    return sum(counts)
+
+
+def _count(images: list, roots: dict, tmp: Path, against: str | None) -> int:
+    """`--instructions`: each image once per revision under callgrind (the revisions side by side)."""
+    if shutil.which("valgrind") is None:
+        raise SystemExit("bench command_timing: --instructions: valgrind not found (apt install valgrind)")
+    counts = {name: {} for name in roots}
+    for png in images:
+        runs = {name: _instructions(root, png, tmp / f"{png.stem}.{name}.json", tmp) for name, root in roots.items()}
+        for name, run in runs.items():
+            counts[name][png.stem] = _collected(run, f"{png.name} under {roots[name]}")
+        for leftover in tmp.glob(f"{png.stem}.*.callgrind"):
+            leftover.unlink()
+        print(f"  {png.stem}: " + " / ".join(f"{name} {counts[name][png.stem] / 1e9:.3f} G" for name in roots),
+              flush=True)
+    print(f"\n`catadioptric reconstruct IMAGE.png -o OUT.json` under callgrind (every process), user-space "
+          f"instructions, {len(images)} clean 2048x1536 images" + (f"; base = {against}" if against else ""))
+    for png in images:
+        line = f"  {png.stem}: here {counts['here'][png.stem] / 1e9:.2f} G"
+        if "base" in roots:
+            line += (f", base {counts['base'][png.stem] / 1e9:.2f} G, here / base "
+                     f"{counts['here'][png.stem] / counts['base'][png.stem]:.3f}")
+        print(line)
+    return 0
+
+
 def main() -> int:
     against = _flag("against", None)
     rounds = int(_flag("rounds", "3"))
@@ -75,6 +130,13 @@ def main() -> int:
         compiled(ROOT)
         base = _worktree(against, tmp, bench="command_timing") if against else None
         roots = {"here": ROOT} | ({"base": base} if base is not None else {})
+        if "--instructions" in sys.argv[1:]:
+            try:
+                return _count(images, roots, tmp, against)
+            finally:
+                if base is not None:
+                    subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(base)],
+                                   capture_output=True, check=False)
         seconds = {name: {png.stem: [] for png in images} for name in roots}
         results = {name: {} for name in roots}
         try:
