@@ -2192,19 +2192,14 @@ def _gaussian_smoothed(image: np.ndarray, sigma: float) -> np.ndarray:
     r = len(k) // 2
     out = np.asarray(image, dtype=np.float64)
     for axis in (0, 1):
-        n = out.shape[axis]
-        idx = np.arange(-r, n + r)
-        period = 2 * n  # reflection: d c b a | a b c d | d c b a, repeated
-        idx = np.mod(idx, period)
-        idx = np.where(idx >= n, period - 1 - idx, idx)
-        line = np.take(out, idx, axis=axis)
-
-        def tap(j):
-            return np.take(line, np.arange(r + j, r + j + n), axis=axis)
-        acc = tap(0) * k[r]
+        lines = np.moveaxis(out, axis, 0)  # the axis smoothed along first (a view)
+        n = len(lines)
+        idx = np.mod(np.arange(-r, n + r), 2 * n)  # reflection: d c b a | a b c d | d c b a, repeated
+        padded = lines[np.where(idx >= n, 2 * n - 1 - idx, idx)]
+        acc = padded[r:r + n] * k[r]
         for j in range(r, 0, -1):
-            acc += (tap(-j) + tap(j)) * k[r - j]
-        out = acc
+            acc += (padded[r - j:r - j + n] + padded[r + j:r + j + n]) * k[r - j]
+        out = np.moveaxis(acc, 0, axis)
     return out
 
 

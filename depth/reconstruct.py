@@ -104,9 +104,7 @@ def check_image(image, resolution) -> np.ndarray:
     """Validate an RGB image array against the setup's (W, H); returns it as float64 in [0, 1]."""
     img = _image_array(image, resolution)
     if img.dtype == np.uint8:
-        img = img.astype(np.float64)
-        img /= 255.0  # in place: one image-sized array, not two (75 MB at 2048×1536, faulted in afresh)
-        return img  # in [0, 1] as it is
+        return _from_8_bits(img)  # in [0, 1] as it is
     img = np.asarray(img, dtype=np.float64)
     if not (img.min() >= 0 and img.max() <= 1):  # NaN propagates through min and max, and fails both
         raise DepthError("image: expected values in [0, 1]")
@@ -139,12 +137,19 @@ itself). On the reconstruct bench's JPEG images it brought the measured front-fa
 1.78 to 0.78 px off the truth (median; `python -m bench reconstruct`); 3 and 7 px windows did worse."""
 
 
-def despeckled(image: np.ndarray) -> np.ndarray:
-    """The image median-filtered per channel over `DESPECKLE_PX` (JPEG block and ringing artefacts
-    break faces into fragments of slightly different colour)."""
-    import cv2
-    u8 = np.round(np.clip(image, 0.0, 1.0) * 255.0).astype(np.uint8)
-    return cv2.medianBlur(u8, DESPECKLE_PX).astype(np.float64) / 255.0
+def _from_8_bits(u8: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """An 8-bit image as float64 in [0, 1] (value / 255), into `out` where given: one image-sized array (75 MB
+    at 2048×1536, faulted in afresh)."""
+    return np.divide(u8, 255.0, out=out)
+
+
+def despeckled(image: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """The image (float64 in [0, 1], or its 8-bit values) median-filtered per channel over `DESPECKLE_PX`
+    (JPEG block and ringing artefacts break faces into fragments of slightly different colour), as float64,
+    into `out` where given. A float image is filtered on its values rounded to 8 bits: those of an 8-bit
+    image come back from its float64 conversion to the bit, so the two give the same."""
+    u8 = image if image.dtype == np.uint8 else np.round(np.clip(image, 0.0, 1.0) * 255.0).astype(np.uint8)
+    return _from_8_bits(cv2.medianBlur(np.ascontiguousarray(u8), DESPECKLE_PX), out)
 
 
 def _measurement(img, blob_mask, outline, face_px, channels, compressed):
@@ -380,9 +385,9 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     helper = None if _HELPER_FORKED else fork_helper(faces, SOLVER_MODULES)
     _HELPER_FORKED = _HELPER_FORKED or helper is not None
     if shared:
-        np.divide(raw, 255.0, out=img)  # (as `check_image`: uint8 → float64, then / 255)
+        _from_8_bits(raw, out=img)
         if compressed:
-            np.divide(cv2.medianBlur(np.ascontiguousarray(raw), DESPECKLE_PX), 255.0, out=det_img)
+            despeckled(raw, out=det_img)
     scipy_imported = import_in_background(SOLVER_MODULES) if helper is None else None
     # checked here once: not again by each face's outline, silhouette, blur evidence and regrowth
     try:

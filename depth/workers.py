@@ -298,9 +298,9 @@ def fork_helper(task, modules) -> Helper | None:
     image, a camera). Only the payload, the progress calls and the result cross the pipe. A helper must be
     `Helper.run` or `Helper.close`d. Fork it before starting threads of its own kind (`import_in_background`):
     a process forked during an import inherits the import's locks."""
-    todo = tuple(name for name in modules if name not in sys.modules)
-    if not todo or not _can_fork():
+    if not will_fork_helper(modules):
         return None
+    todo = tuple(name for name in modules if name not in sys.modules)
     ctx = multiprocessing.get_context("fork")
     here, there = ctx.Pipe()
     process = ctx.Process(target=_helper_main, args=(there, task, todo), name="fork_helper")
