@@ -863,7 +863,9 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         face, vertex of its chain and front-side point: the vertex's coordinates (in edge lengths) along the
         coordinate the point's line fixes (a for left/right points, b for top/bottom ones) and the one it
         measures, "cx" and "cy" (F, 4, N) (the points along the last axis: numpy's loops then run over
-        them, not over the few vertices). Per merged face: its frame axis and its sign, for the
+        them, not over the few vertices); "cy" times the side's sign (±1), so that outward is up for every
+        point (a product by ±1 is exact, and rounding is symmetric: the crossings come out as the sign times
+        those of the unsigned coordinates, to the bit, one pass over the (K, F, 3, N) crossings fewer). Per merged face: its frame axis and its sign, for the
         visibility test, and the points it may bound (N,). Each face images as a convex quadrilateral, so
         a line's largest crossing of it is on an edge.
 
@@ -893,7 +895,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             chains.append([f[(start + j) % 4] for j in range(4)])
             seen.append((a, sg, ~(((a == 1) == front_lr) & (front_sign != sg))))
         chains = np.array(chains, dtype=np.intp).reshape(-1, 4)
-        return {"cx": fixed[chains], "cy": measured[chains], "seen": seen,
+        return {"cx": fixed[chains], "cy": measured[chains] * front_sign, "seen": seen,
                 "front_x0": np.stack([fixed[front[k, 0], cols] for k in cross]),
                 "front_run": np.stack([run[k, cols] for k in cross])}
 
@@ -941,26 +943,25 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
                 v[:, :, 0::3] = np.where(bad[:, None, None], np.nan, v[:, :, 0::3])
             return v
         vx = projected(edges["cx"], np.where(front_lr, shift_a, shift_b))
-        vy = projected(edges["cy"], np.where(front_lr, shift_b, shift_a))
+        vy = projected(edges["cy"], np.where(front_lr, shift_b, shift_a) * front_sign)  # outward up (`face_edges`)
         # each edge from a chain's vertex to the next, (K, F, 3, N): where the line crosses it (t in [0, 1]),
-        # and the measured coordinate there
+        # and the measured coordinate there, outward (y: the run's buffer, taken over once t has it)
         x0, y0 = vx[:, :, :3], vy[:, :, :3]
-        t = line[:, None, None] - x0
-        t /= vx[:, :, 1:] - x0
-        y = vy[:, :, 1:] - y0
+        t = np.subtract(line[:, None, None], x0)
+        run = np.subtract(vx[:, :, 1:], x0)
+        t /= run
+        y = np.subtract(vy[:, :, 1:], y0, out=run)
         y *= t
         y += y0
-        crossed = t >= 0  # (NaN and ±inf for edges along the line fail one test or the other)
-        crossed &= t <= 1
+        crossed = np.greater_equal(t, 0)  # (NaN and ±inf for edges along the line fail one test or the other)
+        crossed &= np.less_equal(t, 1, out=np.empty_like(crossed))
         for f, (axis, sg, bounds) in enumerate(edges["seen"]):
             # a side/top face is seen where its back edge moves outward (σ·shift > 0; σ is ±1); hidden faces
             # image inside the others and are left out (one hidden behind a seen top face would poke out);
             # it bounds only the points `face_edges` allows it
             shift = shift_a if axis == 0 else shift_b
             crossed[:, f] &= ((shift > 0 if sg > 0 else shift < 0) & bounds)[:, None]
-        y *= front_sign
-        np.copyto(y, -np.inf, where=~crossed)
-        extent = np.maximum(y.max(axis=(1, 2)), front_extent)
+        extent = np.maximum(np.max(y, axis=(1, 2), where=crossed, initial=-np.inf), front_extent)
         return np.where(np.isfinite(extent), along - front_sign * extent, front)
 
     def pixel_weights(x):
