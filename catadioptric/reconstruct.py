@@ -55,11 +55,18 @@ def run_reconstruction(image_path, setup_path=None, method=None, cube_size=None,
                        workers=None):
     """Validate the inputs and reconstruct (the faces on `workers` processes, default every core); returns
     (setup, setup_path, image, Reconstruction)."""
+    from depth.reconstruct import helper_started
+    # `reconstruct`'s helper process forked first, before any thread starts here: it imports the estimators'
+    # modules (0.5–0.6 s) while the inputs are read and the cubes detected; ended where the inputs are refused
+    with helper_started():
+        return _run_reconstruction(image_path, setup_path, method, cube_size, progress, blur_domain, workers)
+
+
+def _run_reconstruction(image_path, setup_path, method, cube_size, progress, blur_domain, workers):
     from concurrent.futures import ThreadPoolExecutor
     with ThreadPoolExecutor(1) as reader:
         # the image decoded (by OpenCV, which lets go of the GIL: 40 ms for a 2048×1536 PNG) while the
-        # first call imports scipy, which holds it (0.3 s); its errors are raised in turn, below, and the
-        # thread has ended before anything forks this process
+        # modules below are imported; its errors are raised in turn, below
         reading = reader.submit(read_image, image_path)
         from depth.measure import BLUR_DOMAINS
         from depth.reconstruct import ALL_METHODS, DEFAULT_METHOD, reconstruct

@@ -9,6 +9,7 @@ reason, rather than guessed.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field, replace
 
 import cv2
@@ -19,10 +20,11 @@ from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COM
                             NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, SOLVER_MODULES, CubeEstimate,
                             FaceMeasurement, _silhouette_disagreement, estimate_face, estimate_faces_shape_prior,
                             expected_work)
-from depth.workers import fork_helper, fork_map, import_in_background, shared_array, will_fork_helper
+from depth.workers import SharedMemory, fork_helper, fork_map, import_in_background
 from raytrace.scene import Cube
 
-__all__ = ["ALL_METHODS", "CubeResult", "Refusal", "Reconstruction", "reconstruct", "check_image"]
+__all__ = ["ALL_METHODS", "CubeResult", "Refusal", "Reconstruction", "reconstruct", "check_image", "start_helper",
+           "stop_helper", "helper_started"]
 
 ALL_METHODS = METHODS + ("shape_prior",)
 DEFAULT_METHOD = "exact"
@@ -353,53 +355,112 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         raise DepthError(f"blur_domain: expected one of auto, {', '.join(BLUR_DOMAINS)}, got {blur_domain!r}")
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1):
         raise DepthError(f"workers: expected an integer >= 1, got {workers!r}")
-    global _HELPER_FORKED
-    # On a process's first call the helper is forked (below) before an 8-bit image is converted to float64:
-    # into memory it shares with this process (`shared_array`), filled after the fork, so that the helper
-    # starts its imports 0.06 s sooner (a 2048×1536 image's conversion) and still reads the image when its
-    # first payload comes (sent after the conversion). The same values as `check_image` and `despeckled`
-    # give (an 8-bit image's values come back from float64 to the bit, so it is median-filtered as it is).
     raw = _image_array(image, camera.resolution)
-    shared = raw.dtype == np.uint8 and not _HELPER_FORKED and will_fork_helper(SOLVER_MODULES)
-    if shared:
-        img = shared_array(raw.shape, np.float64)
-        det_img = shared_array(raw.shape, np.float64) if compressed else img
-    else:
-        img = check_image(raw, camera.resolution)
-        det_img = despeckled(img) if compressed else img
-
-    def faces(payload, relay, inbox):  # in the helper: the faces of the detections sent to it
-        mask_bits, shape, packed, more = payload
-        mask = np.unpackbits(mask_bits, count=shape[0] * shape[1]).reshape(shape).view(bool)
-        with checked_images(img, det_img):
-            rec = _faces(img, det_img, camera, mirror, mask, _unpacked(packed, shape), method, cube_size,
-                         relay if progress is not None else None, compressed, blur_domain, workers,
-                         more=inbox if more else None)
-        return replace(rec, mirror_mask=None)  # (the parent has it)
-
-    # The modules of scipy and xslit_fit needed for the faces, imported while the cubes are detected (which
-    # needs none of them): on a process's first call, in a process forked now (`fork_helper`), which then
-    # outlines and estimates the faces (on every core: it forks the workers); else in a thread here (which
-    # imports nothing meanwhile but these), so that a process calling again (a script looping over images)
-    # has them from its second call on rather than forking a helper that imports them again each time.
-    helper = None if _HELPER_FORKED else fork_helper(faces, SOLVER_MODULES)
-    _HELPER_FORKED = _HELPER_FORKED or helper is not None
-    if shared:
-        _from_8_bits(raw, out=img)
-        if compressed:
-            despeckled(raw, out=det_img)
-    scipy_imported = import_in_background(SOLVER_MODULES) if helper is None else None
-    # checked here once: not again by each face's outline, silhouette, blur evidence and regrowth
+    # The faces are outlined and estimated by a helper process (`depth.workers.fork_helper`), which imports
+    # scipy's modules and the estimators' (0.5–0.6 s) while this process detects the cubes (which needs none
+    # of them), then forks the workers: the one `start_helper` forked before the image was read, else on a
+    # process's first call one forked now. Else (a process calling again: a script looping over images) the
+    # modules are imported in a thread here (which imports nothing meanwhile but these), so that such a
+    # process has them from its second call on rather than forking a helper that imports them again each time.
+    # The helper reads the image from memory it shares with this process (`SharedMemory`): an 8-bit image
+    # is converted to float64 there (and despeckled) after the helper is told of it, which it reads only once
+    # the cubes come. The same values as `check_image` and `despeckled` give (an 8-bit image's values come
+    # back from float64 to the bit, so it is median-filtered as it is).
+    helper, memory = _take_helper()
     try:
+        if helper is not None:
+            img, *rest = memory.arrays([(raw.shape, np.float64)] * (2 if compressed else 1))
+            det_img = rest[0] if compressed else img
+            helper.send((_helper_faces, (memory, raw.shape, camera, mirror, method, cube_size, progress is not None,
+                                         compressed, blur_domain, workers)))
+            if raw.dtype == np.uint8:
+                _from_8_bits(raw, out=img)
+            else:
+                np.copyto(img, check_image(raw, camera.resolution))
+            if compressed:
+                despeckled(raw if raw.dtype == np.uint8 else img, out=det_img)
+        else:
+            img = check_image(raw, camera.resolution)
+            det_img = despeckled(img) if compressed else img
+        scipy_imported = import_in_background(SOLVER_MODULES) if helper is None else None
+        # checked here once: not again by each face's outline, silhouette, blur evidence and regrowth
         with checked_images(img, det_img):
             return _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, compressed, blur_domain,
                                 workers, scipy_imported, helper, raw)
     finally:
         if helper is not None:
             helper.close()
+            memory.close()  # (its arrays stay mapped; the helper has a descriptor of its own)
 
 
-_HELPER_FORKED = False  # whether `reconstruct` has forked a helper in this process (it does so once)
+def _helper_faces(job, relay, inbox) -> Reconstruction:
+    """The helper's task (`reconstruct`): the faces of the detections it is sent, as `_faces` finds them. `job`:
+    the shared memory holding the image (float64, then the despeckled one for a JPEG), its shape, and
+    `reconstruct`'s arguments (progress: whether to relay it); the detections come from the inbox: the
+    coloured ones, then the grey ones (`_faces`' `more`)."""
+    from depth.measure import checked_images
+
+    memory, shape, camera, mirror, method, cube_size, progress, compressed, blur_domain, workers = job
+    img, *rest = memory.arrays([(shape, np.float64)] * (2 if compressed else 1))
+    memory.close()
+    det_img = rest[0] if compressed else img
+    mask_bits, mask_shape, packed, more = inbox.get()
+    mask = np.unpackbits(mask_bits, count=mask_shape[0] * mask_shape[1]).reshape(mask_shape).view(bool)
+    with checked_images(img, det_img):
+        rec = _faces(img, det_img, camera, mirror, mask, _unpacked(packed, mask_shape), method, cube_size,
+                     relay if progress else None, compressed, blur_domain, workers, more=inbox if more else None)
+    return replace(rec, mirror_mask=None)  # (the parent has it)
+
+
+def start_helper() -> bool:
+    """Fork now the helper the next `reconstruct` call in this process would fork (none where it would not:
+    it has forked one already, or cannot), so that it imports its modules while this process goes on
+    reading its inputs: `catadioptric reconstruct` calls it before it reads the image and the setup, 0.05–0.1 s
+    before `reconstruct` would. That call takes it; one never taken is ended by `stop_helper` (`helper_started`
+    calls both), else as this process exits (`depth.workers`). Returns whether a helper is waiting."""
+    global _STARTED, _HELPER_FORKED
+    if _STARTED is None and not _HELPER_FORKED:
+        memory = SharedMemory()
+        helper = fork_helper(None, SOLVER_MODULES)
+        if helper is None:
+            memory.close()
+        else:
+            _STARTED, _HELPER_FORKED = (helper, memory), True
+    return _STARTED is not None
+
+
+def stop_helper() -> None:
+    """End the helper `start_helper` forked, where no `reconstruct` call has taken it."""
+    global _STARTED
+    if _STARTED is not None:
+        (helper, memory), _STARTED = _STARTED, None
+        helper.close()
+        memory.close()
+
+
+@contextlib.contextmanager
+def helper_started():
+    """`start_helper` on entry, `stop_helper` on exit: the helper is forked at once and, where the block never
+    reaches `reconstruct` (bad input), ended."""
+    start_helper()
+    try:
+        yield
+    finally:
+        stop_helper()
+
+
+def _take_helper():
+    """(helper, its shared memory) for this `reconstruct` call: the one `start_helper` forked, else on the
+    process's first call one forked now, else (None, None)."""
+    global _STARTED
+    if _STARTED is None and not _HELPER_FORKED:
+        start_helper()
+    taken, _STARTED = _STARTED, None
+    return taken if taken is not None else (None, None)
+
+
+_HELPER_FORKED = False  # whether a helper has been forked for `reconstruct` in this process (once)
+_STARTED = None  # (helper, shared memory) forked by `start_helper`, not taken by `reconstruct` yet
 
 
 def _packed(detections) -> list:

@@ -6,15 +6,18 @@ processes. They are forked: a task is a closure over the parent's image, masks a
 which the workers inherit without pickling; only task indices and results cross the pipes.
 
 `fork_helper` forks a process at once that imports modules while this one goes on, then runs one task
-on what this process sends it: on its first call in a process, `reconstruct` forks it before it detects the
-cubes, and the helper imports scipy's modules and the estimators' on the other core meanwhile (in a thread
-here, the import held the GIL against the detection: 0.3–0.5 s of a 2048×1536 image's 2.6–3.2 s), then
-outlines and estimates the faces. `import_in_background` imports modules in a thread: where no helper can
-be forked, and on `reconstruct`'s second call.
+on what this process sends it: `reconstruct`'s helper (forked by `depth.reconstruct.start_helper` before the
+image is read, or on `reconstruct`'s first call in a process) imports scipy's modules and the estimators' on
+the other core while this one reads the image and detects the cubes (in a thread here, the import held the
+GIL against the detection: 0.3–0.5 s of a 2048×1536 image's 2.6–3.2 s), then outlines and estimates the
+faces. A helper forked before its task is known takes the task with its first payload, and the arrays it is
+to share with this process in a `SharedMemory` made before the fork. `import_in_background` imports modules
+in a thread: where no helper can be forked, and on `reconstruct`'s second call.
 """
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import importlib
 import mmap
@@ -22,7 +25,9 @@ import multiprocessing
 import os
 import signal
 import sys
+import tempfile
 import threading
+import weakref
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from multiprocessing.reduction import ForkingPickler
@@ -31,7 +36,7 @@ import numpy as np
 
 from raytrace.render import keep_freed_memory, single_threaded_blas
 
-__all__ = ["available_cores", "fork_map", "fork_helper", "will_fork_helper", "shared_array", "Helper", "Inbox",
+__all__ = ["available_cores", "fork_map", "fork_helper", "will_fork_helper", "SharedMemory", "Helper", "Inbox",
            "import_in_background"]
 
 _TASK = None  # the running `fork_map`'s task, inherited by its workers when they fork
@@ -227,7 +232,8 @@ class Inbox:
         return self._conn.recv()
 
 
-def _helper_main(conn, task, modules) -> None:
+def _helper_main(conn, task, modules, parent_end) -> None:
+    parent_end.close()  # (inherited: held here, it would keep `recv` from seeing the parent leave)
     _own_group(os.getpid())
     for name in modules:
         try:
@@ -239,6 +245,8 @@ def _helper_main(conn, task, modules) -> None:
     except EOFError:  # the parent closed the helper (or ended) before sending anything
         return
     try:
+        if task is None:  # the task came with the payload (`fork_helper`)
+            task, payload = payload
         result = ("result", task(payload, lambda *args: conn.send(("progress",) + args), Inbox(conn)))
     except BaseException as exc:  # noqa: BLE001 - raised again in the parent
         result = ("error", exc)
@@ -277,14 +285,47 @@ def will_fork_helper(modules) -> bool:
     return any(name not in sys.modules for name in modules) and _can_fork()
 
 
-def shared_array(shape, dtype) -> np.ndarray:
-    """A zeroed array in memory shared with the processes forked after it is made (an anonymous shared
-    mapping): what this process writes into it, even after the fork, they read. `depth.reconstruct` forks its
-    helper before it converts the image into one."""
-    dtype = np.dtype(dtype)
-    size = int(np.prod(shape)) * dtype.itemsize
-    buffer = mmap.mmap(-1, max(size, 1))  # anonymous: shared with forked processes (MAP_SHARED on Unix)
-    return np.frombuffer(buffer, dtype=dtype, count=int(np.prod(shape))).reshape(shape)
+class SharedMemory:
+    """Memory shared with the processes forked after it is made: a memfd (an unlinked temporary file where the
+    platform has none), which this process sizes and maps as arrays (`arrays`) once it knows their shapes, and
+    which those processes map as the same arrays when they are told the shapes: what one writes, the others
+    read. It pickles as its file descriptor, which those processes hold too (inherited at the fork), so it
+    may go to them in a payload; anywhere else it is not the same memory. `close` it in each process once
+    mapped (the mappings outlive it)."""
+
+    def __init__(self, fd: int | None = None):
+        if fd is not None:  # (unpickled: the descriptor inherited from the process that made it)
+            self.fd = fd
+        elif hasattr(os, "memfd_create"):
+            self.fd = os.memfd_create("depth.workers.SharedMemory")
+        else:
+            self.fd, path = tempfile.mkstemp(prefix="depth-workers-")
+            os.unlink(path)
+
+    def __reduce__(self):
+        return SharedMemory, (self.fd,)
+
+    def arrays(self, specs) -> list[np.ndarray]:
+        """Arrays of the given (shape, dtype) pairs, one after another in this memory, zeroed where nobody
+        has written yet; the same specs give the same arrays in every process that shares it."""
+        specs = [(tuple(int(n) for n in shape), np.dtype(dtype)) for shape, dtype in specs]
+        counts = [int(np.prod(shape)) for shape, _ in specs]
+        offsets, end = [], 0
+        for (_, dtype), count in zip(specs, counts):
+            offsets.append(end)
+            end += -(-count * dtype.itemsize // 64) * 64  # each array 64-byte aligned
+        end = max(end, 1)
+        if os.fstat(self.fd).st_size < end:
+            os.ftruncate(self.fd, end)
+        buffer = mmap.mmap(self.fd, end)  # MAP_SHARED
+        return [np.frombuffer(buffer, dtype=dtype, count=count, offset=offset).reshape(shape)
+                for (shape, dtype), count, offset in zip(specs, counts, offsets)]
+
+    def close(self) -> None:
+        """Close this process's descriptor (its arrays stay mapped); twice does nothing."""
+        fd, self.fd = self.fd, -1
+        if fd >= 0:
+            os.close(fd)
 
 
 def fork_helper(task, modules) -> Helper | None:
@@ -295,16 +336,33 @@ def fork_helper(task, modules) -> Helper | None:
     inside a `fork_map` worker).
 
     The task is inherited, not pickled: it may be a closure over this process's state as it is now (an
-    image, a camera). Only the payload, the progress calls and the result cross the pipe. A helper must be
-    `Helper.run` or `Helper.close`d. Fork it before starting threads of its own kind (`import_in_background`):
-    a process forked during an import inherits the import's locks."""
+    image, a camera). Only the payload, the progress calls and the result cross the pipe. With task None,
+    the helper is forked before its task is known: the first payload is then (task, payload), the task
+    pickled by reference (a module-level function), and what it shares with this process goes in a
+    `SharedMemory` made before this call. A helper must be `Helper.run` or `Helper.close`d. Fork it before
+    starting threads (`import_in_background`, a thread reading a file): a process forked while another
+    thread holds a lock (an import's, a library's) inherits it held."""
     if not will_fork_helper(modules):
         return None
     todo = tuple(name for name in modules if name not in sys.modules)
     ctx = multiprocessing.get_context("fork")
     here, there = ctx.Pipe()
-    process = ctx.Process(target=_helper_main, args=(there, task, todo), name="fork_helper")
+    process = ctx.Process(target=_helper_main, args=(there, task, todo, here), name="fork_helper")
     process.start()
     _own_group(process.pid)
     there.close()
-    return Helper(process, here)
+    helper = Helper(process, here)
+    _OPEN_HELPERS.add(helper)
+    return helper
+
+
+_OPEN_HELPERS = weakref.WeakSet()  # the helpers forked here, to be closed when this process exits
+
+
+@atexit.register
+def _close_open_helpers() -> None:
+    """Close the helpers this process leaves open as it exits. Registered after multiprocessing's own exit
+    handler (imported above), so run before it: that one waits for every child process, and a helper still
+    waiting for its first payload would wait for ever (`start_helper` without a `reconstruct` call)."""
+    for helper in list(_OPEN_HELPERS):
+        helper.close()

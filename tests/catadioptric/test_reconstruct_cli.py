@@ -512,8 +512,8 @@ def test_the_faces_outlined_in_a_helper_process_give_the_results_of_this_one(sce
     # A fresh process forks a helper that imports the estimators' modules while this one detects the cubes,
     # then outlines and estimates the faces (`depth.workers.fork_helper`). Here those modules are imported
     # already, so a module not yet imported is added to the list to make `reconstruct` fork one. The helper
-    # is forked before the 8-bit image is converted (and, read as JPEG, despeckled) into memory it shares
-    # with this process (`depth.workers.shared_array`); the second and third calls convert it as
+    # is told of the image before the 8-bit image is converted (and, read as JPEG, despeckled) into memory it
+    # shares with this process (`depth.workers.SharedMemory`); the second and third calls convert it as
     # `check_image` and `despeckled` do, in memory of their own.
     import sys
 
@@ -533,14 +533,15 @@ def test_the_faces_outlined_in_a_helper_process_give_the_results_of_this_one(sce
     forked = []
     real = dr.fork_helper
     monkeypatch.setattr(dr, "fork_helper", lambda *a: forked.append(real(*a)) or forked[-1])
-    shared = []
-    real_shared = dr.shared_array
-    monkeypatch.setattr(dr, "shared_array", lambda *a: shared.append(real_shared(*a)) or shared[-1])
+    shared = []  # the arrays mapped here in shared memory
+    real_arrays = dr.SharedMemory.arrays
+    monkeypatch.setattr(dr.SharedMemory, "arrays", lambda self, specs: shared.extend(real_arrays(self, specs))
+                        or shared[-len(specs):])
     there = dr.reconstruct(img, camera, mirror, compressed=compressed,
                            progress=lambda d, t: calls["helper"].append((d, t)))
     assert len(forked) == 1 and forked[0] is not None and forked[0]._process is None  # it ran and was closed
     assert len(shared) == 1 + compressed  # the image, and the despeckled one
-    assert "not_yet_imported" not in sys.modules
+    assert "not_yet_imported" not in sys.modules and dr._STARTED is None
     # a second call in this process forks no helper again: it imports the modules here, beside the detection
     again = dr.reconstruct(img, camera, mirror, compressed=compressed)
     assert len(shared) == 1 + compressed
@@ -554,6 +555,51 @@ def test_the_faces_outlined_in_a_helper_process_give_the_results_of_this_one(sce
     assert here.refused == there.refused and here.blur_domain == there.blur_domain
     np.testing.assert_array_equal(here.mirror_mask, there.mirror_mask)
     assert calls["helper"] == calls["here"] and calls["here"][-1] == (4, 4)
+
+
+def test_a_helper_started_before_the_inputs_are_read_serves_the_next_call_or_ends_unused(scene, tmp_path,
+                                                                                         monkeypatch):
+    # `catadioptric reconstruct` forks the helper before it reads the image and the setup (`helper_started`),
+    # so that its imports start sooner; the `reconstruct` call then takes it rather than forking its own. Where
+    # the inputs are refused it is ended, unused. As above, a module not yet imported makes a helper worth
+    # forking here.
+    import sys
+
+    import depth.reconstruct as dr
+    from catadioptric import reconstruct as rc
+    from catadioptric.errors import CatadioptricError
+    from catadioptric.setup import load_setup
+    setup = load_setup(scene / "in.toml")
+    camera, mirror = setup.camera.build(), setup.mirror.build()
+    img = cv2.cvtColor(cv2.imread(str(scene / "mirror.png")), cv2.COLOR_BGR2RGB)
+    here = dr.reconstruct(img, camera, mirror)
+    (tmp_path / "not_yet_imported3.py").write_text("")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "not_yet_imported3", raising=False)
+    monkeypatch.setattr(dr, "SOLVER_MODULES", dr.SOLVER_MODULES + ("not_yet_imported3",))
+    monkeypatch.setattr(dr, "_HELPER_FORKED", False)  # as in a fresh process
+    monkeypatch.setattr(dr, "_STARTED", None)
+    forked = []
+    real = dr.fork_helper
+    monkeypatch.setattr(dr, "fork_helper", lambda *a: forked.append(real(*a)) or forked[-1])
+    with dr.helper_started():
+        assert len(forked) == 1 and dr._STARTED is not None
+        process = forked[0]._process
+        assert dr.start_helper() and len(forked) == 1  # one at a time
+        there = dr.reconstruct(img, camera, mirror)
+        assert dr._STARTED is None
+    assert len(forked) == 1 and forked[0]._process is None and not process.is_alive()  # taken, run and closed
+    assert len(here.cubes) == len(there.cubes) == 2
+    for a, b in zip(here.cubes, there.cubes):
+        np.testing.assert_array_equal(a.estimate.center, b.estimate.center)
+        assert (a.depth, a.depth_std, a.bbox, a.estimate.size) == (b.depth, b.depth_std, b.bbox, b.estimate.size)
+    assert here.refused == there.refused
+    # the command's inputs refused: the helper it forked first is ended, unused
+    monkeypatch.setattr(dr, "_HELPER_FORKED", False)
+    with pytest.raises(CatadioptricError, match="missing.png"):
+        rc.run_reconstruction(str(tmp_path / "missing.png"), scene / "in.toml")
+    assert len(forked) == 2 and forked[1]._process is None and dr._STARTED is None
+    assert "not_yet_imported3" not in sys.modules
 
 
 def test_the_helper_estimates_the_coloured_faces_while_the_grey_search_still_runs(scene, tmp_path, monkeypatch):

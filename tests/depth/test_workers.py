@@ -185,25 +185,53 @@ def test_a_payload_larger_than_the_pipe_is_sent_without_waiting_for_the_helper_t
     assert helper.run("rest") == (True, 4_000_000, "rest")
 
 
-def test_a_shared_array_written_after_the_fork_is_read_by_the_forked_process(tmp_path, monkeypatch):
-    """What this process writes into a `shared_array` after forking a helper, before sending its payload,
-    the helper reads (an ordinary array written then it would not see: it has its own copy); and
-    `will_fork_helper` says beforehand whether `fork_helper` forks."""
-    from depth.workers import fork_helper, shared_array, will_fork_helper
+_PRIVATE = np.zeros(3)  # this module's own state: a forked helper has its copy as it was at the fork
+
+
+def _read_shared(job, progress, inbox):
+    """A helper task sent with its first payload (pickled by reference): once the next payload comes, the
+    values at fixed places of the arrays `job` describes in its shared memory, and of `_PRIVATE`."""
+    memory, specs = job
+    image, flags = memory.arrays(specs)
+    memory.close()
+    rest = inbox.get()
+    return float(image[2, 1, 0]), int(flags[4]), float(_PRIVATE[1]), rest
+
+
+@pytest.mark.parametrize("memfd", [True, False])
+def test_shared_memory_written_after_the_fork_is_read_by_a_helper_given_its_task_with_the_payload(
+        tmp_path, monkeypatch, memfd):
+    """A helper forked before its task and its arrays' shapes are known (`fork_helper(None, ...)`) maps the
+    arrays of a `SharedMemory` made before the fork, sized after it, sent to it in its first payload: what
+    this process writes into them after sending that payload, it reads (an ordinary array written then it
+    would not see: it has its own copy); where the platform has no memfd, through an unlinked temporary
+    file. `will_fork_helper` says beforehand whether `fork_helper` forks."""
+    import pickle
+
+    from depth.workers import SharedMemory, fork_helper, will_fork_helper
+    if not memfd:
+        monkeypatch.delattr(os, "memfd_create", raising=False)
+    elif not hasattr(os, "memfd_create"):
+        pytest.skip("no memfd on this platform")
     _fresh_module(tmp_path, monkeypatch, "helper_mod_shared")
-    image = shared_array((3, 4, 2), np.float64)
-    private = np.zeros((3, 4, 2))
-    assert image.shape == (3, 4, 2) and image.dtype == np.float64 and not image.any()
-
-    def task(payload, progress, inbox):
-        return float(image[payload]), float(private[payload])
-
-    assert not will_fork_helper(["numpy"]) and fork_helper(task, ["numpy"]) is None
+    memory = SharedMemory()
+    assert pickle.loads(pickle.dumps(memory)).fd == memory.fd  # (the descriptor the forked processes hold too)
+    assert not will_fork_helper(["numpy"]) and fork_helper(None, ["numpy"]) is None
     assert will_fork_helper(["helper_mod_shared", "numpy"])
-    helper = fork_helper(task, ["helper_mod_shared", "numpy"])
+    helper = fork_helper(None, ["helper_mod_shared", "numpy"])
     assert helper is not None
-    image[2, 1, 0] = private[2, 1, 0] = 0.25
-    assert helper.run((2, 1, 0)) == (0.25, 0.0)
+    specs = [((3, 4, 2), np.float64), ((5,), np.uint8)]
+    image, flags = memory.arrays(specs)
+    assert image.shape == (3, 4, 2) and image.dtype == np.float64 and flags.shape == (5,) and flags.dtype == np.uint8
+    assert not image.any() and not flags.any()
+    helper.send((_read_shared, (memory, specs)))
+    memory.close()
+    memory.close()  # twice: nothing more to do
+    image[2, 1, 0], flags[4], _PRIVATE[1] = 0.25, 7, 0.5
+    try:
+        assert helper.run("rest") == (0.25, 7, 0.0, "rest")
+    finally:
+        _PRIVATE[1] = 0.0
 
 
 def test_no_helper_where_every_module_is_imported_already():
@@ -230,6 +258,45 @@ def test_a_helper_task_error_is_raised_here_and_a_helper_never_run_ends(tmp_path
     idle.close()  # twice: nothing more to do
 
 
+def _gone(pid: int) -> bool:
+    """Whether process `pid` has ended (a zombie until whoever adopted it reaps it)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] in "ZX"
+    except FileNotFoundError:
+        return True
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc"), reason="reads /proc")
+@pytest.mark.parametrize("leaving", ["exits", "killed"])
+def test_a_helper_left_open_ends_with_the_process_that_forked_it(tmp_path, leaving):
+    """A helper never sent anything (`depth.reconstruct.start_helper` without a `reconstruct` call) does not
+    outlive the process that forked it: closed as that process exits (else multiprocessing's exit handler waits
+    for it for ever), and ending by itself where that process is killed (it holds no end of the parent's
+    pipe, so its wait for a payload sees the parent leave)."""
+    import subprocess
+    import sys
+    import time
+    (tmp_path / "helper_mod7.py").write_text("")
+    end = "os.kill(os.getpid(), signal.SIGKILL)" if leaving == "killed" else "sys.exit(0)"
+    script = (f"import os, signal, sys\nsys.path.insert(0, {str(tmp_path)!r})\n"
+              f"from depth.workers import fork_helper\n"
+              f"helper = fork_helper(lambda payload, progress, inbox: payload, ['helper_mod7'])\n"
+              f"print(helper._process.pid, flush=True)\n{end}\n")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60,
+                          cwd=os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
+    pid = int(done.stdout.split()[0])
+    deadline = time.perf_counter() + 20
+    while not _gone(pid) and time.perf_counter() < deadline:
+        time.sleep(0.05)
+    try:
+        assert _gone(pid)
+        assert done.returncode == (-9 if leaving == "killed" else 0)
+    finally:
+        if not _gone(pid):
+            os.kill(pid, 9)
+
+
 def test_a_helper_closed_while_it_runs_its_task_is_ended_not_waited_for(tmp_path, monkeypatch):
     import signal
     import time
@@ -251,13 +318,6 @@ def test_a_helper_closed_while_it_runs_its_task_is_ended_not_waited_for(tmp_path
             time.sleep(0.05)
         raise KeyboardInterrupt
 
-    def gone(pid):  # ended (a zombie until whoever adopted it reaps it)
-        try:
-            with open(f"/proc/{pid}/stat") as f:
-                return f.read().rsplit(")", 1)[1].split()[0] in "ZX"
-        except FileNotFoundError:
-            return True
-
     helper = fork_helper(task, ["helper_mod4"])
     child = helper._process
     t0 = time.perf_counter()
@@ -267,13 +327,13 @@ def test_a_helper_closed_while_it_runs_its_task_is_ended_not_waited_for(tmp_path
     try:
         assert len(workers) == 2 and not child.is_alive()
         deadline = time.perf_counter() + 10
-        while not all(gone(pid) for pid in workers) and time.perf_counter() < deadline:
+        while not all(_gone(pid) for pid in workers) and time.perf_counter() < deadline:
             time.sleep(0.05)
-        assert all(gone(pid) for pid in workers)  # the workers it forked ended with it
+        assert all(_gone(pid) for pid in workers)  # the workers it forked ended with it
         assert time.perf_counter() - t0 < 40
     finally:  # none left behind if not (they would hold this process's output open for a minute)
         for pid in workers:
-            if not gone(pid):
+            if not _gone(pid):
                 os.kill(pid, signal.SIGKILL)
 
 
