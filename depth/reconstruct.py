@@ -20,7 +20,7 @@ from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COM
                             NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, SOLVER_MODULES, CubeEstimate,
                             FaceMeasurement, _silhouette_disagreement, estimate_face, estimate_faces_shape_prior,
                             expected_work)
-from depth.workers import SharedMemory, fork_helper, fork_map, import_in_background
+from depth.workers import SharedMemory, fork_chain, fork_helper, fork_map, import_in_background
 from raytrace.scene import Cube
 
 __all__ = ["ALL_METHODS", "CubeResult", "Refusal", "Reconstruction", "reconstruct", "check_image", "start_helper",
@@ -659,20 +659,21 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                                else lambda done, _: progress(done, 2 * len(detections)))
     else:
         # While the grey search still runs in the parent, the coloured faces are outlined, then estimated as
-        # `settled` would (the longest expected first, as there; a blurred face's outline waits for the
-        # image's blur-domain verdict). (Outlined and estimated in one pool, handed out by blob size, the
-        # faces of s06 left one worker idle for 0.4 s at the end.)
-        outcomes = outline_all(detections)
-        todo = [i for i, out in enumerate(outcomes) if not isinstance(out, str) and method != "shape_prior"
-                and (blur_domain == "linear" or not out[1].blurred)]
+        # `settled` would (a blurred face's outline waits for the image's blur-domain verdict): in one pool,
+        # the outlines first (larger blobs first), then the estimates, the longest expected first among those
+        # whose outline has come (`fork_chain`: a worker that ends the last outlines starts an estimate while
+        # the other still outlines). (Each face outlined and estimated as one task, handed out by blob size,
+        # the faces of s06 left one worker idle for 0.4 s at the end.)
+        def plan(i, outcome):  # (expected work, measurement) of a face to estimate now, else None
+            if isinstance(outcome, str) or method == "shape_prior" or (blur_domain != "linear" and outcome[1].blurred):
+                return None
+            return expected_work(outcome[3], method), outcome[3]
 
-        def first_estimate(j):
-            i = todo[j]
-            return estimate_face(rays, replace(outcomes[i][3], blob_mask=detections[i].mask), method=method,
+        def first_estimate(i, meas):
+            return estimate_face(rays, replace(meas, blob_mask=detections[i].mask), method=method,
                                  cube_size=cube_size, up=up)
-        for i, est in zip(todo, fork_map(first_estimate, len(todo), workers,
-                                         cost=[expected_work(outcomes[i][3], method) for i in todo])):
-            early[i] = est
+        outcomes, early = fork_chain(lambda i: outlined(detections[i]), first_estimate, len(detections), plan,
+                                     workers, cost=[int(det.mask.sum()) for det in detections])
         grey = _unpacked(more.get(), mask.shape)
         for det in grey:
             blobs |= det.mask

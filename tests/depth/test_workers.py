@@ -110,6 +110,60 @@ def test_the_estimators_scipy_modules_are_not_imported_with_the_package():
     assert done.stdout.strip() == "[]"
 
 
+@pytest.mark.parametrize("workers", [1, 2])
+def test_fork_chain_runs_the_second_tasks_planned_on_the_first_ones_results(workers):
+    from depth.workers import fork_chain
+    data = np.arange(6) * 3  # inherited by the workers
+    planned = []
+
+    def plan(i, result):  # here, as each first task ends
+        planned.append((i, os.getpid()))
+        return None if i % 3 == 0 else (float(i), np.full(2, result[0]))  # the arg goes to the worker pickled
+
+    firsts, seconds = fork_chain(lambda i: (int(data[i]), os.getpid()), lambda i, arg: (int(arg.sum()) + i, os.getpid()),
+                                 6, plan, workers=workers, cost=[1, 5, 2, 6, 3, 4])
+    assert [v for v, _ in firsts] == [0, 3, 6, 9, 12, 15]
+    assert [None if s is None else s[0] for s in seconds] == [None, 7, 14, None, 28, 35]
+    assert sorted(i for i, _ in planned) == list(range(6)) and {p for _, p in planned} == {os.getpid()}
+    pids = {p for _, p in firsts} | {s[1] for s in seconds if s is not None}
+    assert (os.getpid() in pids) == (workers == 1)
+
+
+def test_fork_chain_starts_a_second_task_while_a_first_one_still_runs(tmp_path):
+    """A worker that ends its first tasks takes a second one at once, while the other still runs a long first
+    task: no stage waits for the whole of the one before it. With one worker, the order is the first tasks,
+    costliest first, then the second ones, costliest first."""
+    import time
+
+    from depth.workers import fork_chain
+
+    def first(i):
+        if i == 0:
+            time.sleep(1.5)
+        return time.perf_counter()  # (CLOCK_MONOTONIC: one clock for every process)
+
+    def second(i, arg):
+        return time.perf_counter()
+
+    firsts, seconds = fork_chain(first, second, 3, lambda i, end: (float(i), None) if i else None, workers=2,
+                                 cost=[3.0, 2.0, 1.0])
+    assert seconds[0] is None and seconds[1] < firsts[0] and seconds[2] < firsts[0]
+    order = []
+    fork_chain(lambda i: order.append(("first", i)), lambda i, arg: order.append(("second", i)), 3,
+               lambda i, _: (float(i), None), workers=1, cost=[1.0, 3.0, 2.0])
+    assert order == [("first", 1), ("first", 2), ("first", 0), ("second", 2), ("second", 1), ("second", 0)]
+
+
+def test_fork_chain_raises_a_task_error_here():
+    from depth.workers import fork_chain
+
+    def second(i, arg):
+        raise ValueError(f"face {i}: {arg}")
+
+    with pytest.raises(ValueError, match="face 1: x"):
+        fork_chain(lambda i: i, second, 3, lambda i, _: (1.0, "x") if i == 1 else None, workers=2)
+
+
 def _fresh_module(tmp_path, monkeypatch, name, body="VALUE = 7\n"):
     """A module `name` importable from tmp_path and not imported in this process."""
     import sys
@@ -295,6 +349,25 @@ def test_a_helper_left_open_ends_with_the_process_that_forked_it(tmp_path, leavi
     finally:
         if not _gone(pid):
             os.kill(pid, 9)
+
+
+def test_a_helper_that_ended_on_an_error_before_the_last_payload_reports_its_error(tmp_path, monkeypatch):
+    """The helper's task failed on its first payload, and it has ended, before `run` sends the last one: the
+    send finds the pipe closed, and the error the helper sent is raised (not the broken pipe, which the
+    command would take for its output's reader leaving)."""
+    from depth.workers import fork_helper
+    _fresh_module(tmp_path, monkeypatch, "helper_mod8")
+
+    def task(payload, progress, inbox):
+        raise KeyError(f"no face {payload}")
+
+    helper = fork_helper(task, ["helper_mod8"])
+    process = helper._process
+    helper.send(3)
+    process.join(timeout=30)
+    assert not process.is_alive()
+    with pytest.raises(KeyError, match="no face 3"):
+        helper.run("rest", progress=lambda done, total: None)
 
 
 def test_a_helper_closed_while_it_runs_its_task_is_ended_not_waited_for(tmp_path, monkeypatch):
