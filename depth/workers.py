@@ -36,8 +36,8 @@ import numpy as np
 
 from raytrace.render import keep_freed_memory, single_threaded_blas
 
-__all__ = ["available_cores", "fork_map", "fork_chain", "fork_helper", "will_fork_helper", "SharedMemory", "Helper", "Inbox",
-           "import_in_background"]
+__all__ = ["available_cores", "fork_map", "fork_chain", "fork_helper", "will_fork_helper", "SharedMemory", "Helper",
+           "Inbox", "import_in_background"]
 
 _TASK = None  # the running `fork_map`'s task, inherited by its workers when they fork
 _LOCK = threading.Lock()  # one `fork_map` pool at a time per process (it owns `_TASK`)

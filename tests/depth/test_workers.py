@@ -120,8 +120,9 @@ def test_fork_chain_runs_the_second_tasks_planned_on_the_first_ones_results(work
         planned.append((i, os.getpid()))
         return None if i % 3 == 0 else (float(i), np.full(2, result[0]))  # the arg goes to the worker pickled
 
-    firsts, seconds = fork_chain(lambda i: (int(data[i]), os.getpid()), lambda i, arg: (int(arg.sum()) + i, os.getpid()),
-                                 6, plan, workers=workers, cost=[1, 5, 2, 6, 3, 4])
+    firsts, seconds = fork_chain(lambda i: (int(data[i]), os.getpid()),
+                                 lambda i, arg: (int(arg.sum()) + i, os.getpid()), 6, plan, workers=workers,
+                                 cost=[1, 5, 2, 6, 3, 4])
     assert [v for v, _ in firsts] == [0, 3, 6, 9, 12, 15]
     assert [None if s is None else s[0] for s in seconds] == [None, 7, 14, None, 28, 35]
     assert sorted(i for i, _ in planned) == list(range(6)) and {p for _, p in planned} == {os.getpid()}
