@@ -362,9 +362,12 @@ def main(argv=None, *, one_shot: bool = False) -> int:
     except KeyboardInterrupt:
         print("catadioptric: interrupted", file=sys.stderr)
         return 130
-    except BrokenPipeError:  # whatever read the output stopped reading (`| head`): end quietly, as Unix
-        _to_nowhere(sys.stdout)  # tools do
-        return 1
+    except BrokenPipeError as exc:
+        if not _reader_gone(sys.stdout):  # a pipe of the command's own, not its output's: an error to report
+            print(f"catadioptric: error: {exc}", file=sys.stderr)
+            return 1
+        _to_nowhere(sys.stdout)  # whatever read the output stopped reading (`| head`): end quietly, as Unix
+        return 1  # tools do
 
 
 def console() -> None:
@@ -414,6 +417,18 @@ def _end_process(status: int) -> None:
         except (OSError, ValueError):
             return
     os._exit(status)
+
+
+def _reader_gone(stream) -> bool:
+    """Whether `stream` (a standard stream) is a pipe whose reader has gone (polled: an error is pending on
+    its write end); True where that cannot be told."""
+    import select
+    try:
+        poller = select.poll()
+        poller.register(stream.fileno(), 0)
+        return any(events & select.POLLERR for _, events in poller.poll(0))
+    except (AttributeError, OSError, ValueError):  # no poll on this platform, or no descriptor
+        return True
 
 
 def _to_nowhere(stream) -> None:

@@ -435,6 +435,26 @@ def test_a_closed_output_pipe_ends_the_command_quietly(scene, tmp_path, command)
     assert done.stderr == ""
 
 
+def test_a_broken_pipe_of_the_commands_own_is_reported_not_taken_for_the_output_closing(scene, tmp_path):
+    # a BrokenPipeError from a pipe of the command's own (its helper's, say) while its output is still read:
+    # one line on stderr and exit status 1, not the quiet end of a closed output pipe (a helper that had died
+    # ended the command so, with no word, before `Helper.run` read the error it had sent)
+    import subprocess
+    import sys
+    script = ("import catadioptric.reconstruct as rc\n"
+              "def broken(*args, **kwargs):\n"
+              "    raise BrokenPipeError(32, 'Broken pipe')\n"
+              "rc.run_reconstruction = broken\n"
+              "from catadioptric.cli import console\n"
+              "console()\n")
+    done = subprocess.run([sys.executable, "-c", script, "reconstruct", str(scene / "mirror.png"), "--setup",
+                           str(scene / "in.toml"), "-o", str(tmp_path / "r.json")],
+                          capture_output=True, text=True, check=False)
+    assert done.returncode == 1
+    assert done.stderr.strip().splitlines() == ["catadioptric: error: [Errno 32] Broken pipe"]
+    assert not (tmp_path / "r.json").exists()
+
+
 def _white_cube_before_a_bright_sky():
     """(sRGB image (H, W, 3) uint8, its setup, the share (H, W, 1) of sky in each pixel) of a white cube
     turned 20° before a sky shading from linear 0.6 (left) to 0.95 (right) across the image: its front
