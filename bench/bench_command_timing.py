@@ -12,7 +12,11 @@ Run: ``python -m bench command_timing [--against=REV] [--rounds=N]`` (the ``=`` 
 
 ``--instructions`` counts instead of timing: each image's command once per revision under Valgrind's
 callgrind (every process it forks followed), the user-space instructions of all its processes summed, and
-the ratio per image. On this VM wall and CPU times of one command vary by 10–20 % from run to run, which
+the ratio per image. A forked process starts with its parent's counts (callgrind copies them with the rest
+of the process), so each process's "Collected" total holds its parent's instructions up to the fork too:
+summed, the parent's were counted again for each helper and worker it forked (the helper's imports once a
+worker). Hence ``--dump-before=fork``: the parent writes its counts out and zeroes them before each fork,
+and the totals of all the files written (each process's own instructions, in parts) are summed. On this VM wall and CPU times of one command vary by 10–20 % from run to run, which
 hides a change of a few per cent; instruction counts repeat to a small fraction of that. They leave out
 the kernel's work (page faults, forks: a sixth of the command's CPU) and weigh every instruction alike,
 so they say whether a change does less work, not how much sooner the command ends. Needs ``valgrind``
@@ -76,23 +80,25 @@ def _result(path: Path) -> str:
 def _instructions(root: Path, png: Path, out: Path, tmp: Path) -> subprocess.Popen:
     """The started callgrind run of one fresh `catadioptric reconstruct` under `root` (see `_collected`)."""
     tag = f"{png.stem}.{root.name}"
-    return subprocess.Popen(["valgrind", "--tool=callgrind", "--trace-children=yes",
+    return subprocess.Popen(["valgrind", "--tool=callgrind", "--trace-children=yes", "--dump-before=fork",
                              f"--callgrind-out-file={tmp / tag}.%p.callgrind", sys.executable, "-c", _CONSOLE,
                              "reconstruct", str(png), "-o", str(out)],
                             cwd=root, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
 
 
-def _collected(run: subprocess.Popen, what: str) -> int:
-    """The user-space instructions callgrind collected over every process of a finished `_instructions` run
-    (its "Collected : N" lines, one a process)."""
+def _collected(run: subprocess.Popen, what: str, files: list) -> int:
+    """The user-space instructions of every process of a finished `_instructions` run: the "totals:" of the
+    files it wrote (`files`: each process's, and the parts a parent dumped before each fork), which count
+    each instruction once (see the module's docstring: the processes' "Collected" lines do not)."""
     _, err = run.communicate()
     if run.returncode != 0:
         tail = [line for line in err.strip().splitlines() if "Collected" not in line][-1:] or ["(no message)"]
         raise SystemExit(f"bench command_timing: --instructions: {what} failed: {tail[0]}")
-    counts = [int(line.split(":")[-1].replace(",", "")) for line in err.splitlines() if "Collected :" in line]
-    if not counts:
-        raise SystemExit(f"bench command_timing: --instructions: {what}: callgrind reported no count")
-    return sum(counts)
+    totals = [int(line.split()[1]) for path in files for line in path.read_text().splitlines()
+              if line.startswith("totals:")]
+    if not totals:
+        raise SystemExit(f"bench command_timing: --instructions: {what}: callgrind wrote no counts")
+    return sum(totals)
 
 
 def _count(images: list, roots: dict, tmp: Path, against: str | None) -> int:
@@ -103,8 +109,9 @@ def _count(images: list, roots: dict, tmp: Path, against: str | None) -> int:
     for png in images:
         runs = {name: _instructions(root, png, tmp / f"{png.stem}.{name}.json", tmp) for name, root in roots.items()}
         for name, run in runs.items():
-            counts[name][png.stem] = _collected(run, f"{png.name} under {roots[name]}")
-        for leftover in tmp.glob(f"{png.stem}.*.callgrind"):
+            files = sorted(tmp.glob(f"{png.stem}.{roots[name].name}.*.callgrind*"))
+            counts[name][png.stem] = _collected(run, f"{png.name} under {roots[name]}", files)
+        for leftover in tmp.glob(f"{png.stem}.*.callgrind*"):
             leftover.unlink()
         print(f"  {png.stem}: " + " / ".join(f"{name} {counts[name][png.stem] / 1e9:.3f} G" for name in roots),
               flush=True)
