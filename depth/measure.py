@@ -2168,10 +2168,12 @@ def _bilinear(img: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
     y0, y1, wy0, wy1 = taps(v, h)
     x0, x1, wx0, wx1 = taps(u, w)
-    out = 0.0 + img[y0, x0] * wy0 * wx0
-    out += img[y0, x1] * wy0 * wx1
-    out += img[y1, x0] * wy1 * wx0
-    out += img[y1, x1] * wy1 * wx1
+    pixels = np.ascontiguousarray(img).reshape(h * w, -1)  # gathered by flat index (`take`: 0.76 of the time)
+    row0, row1 = y0 * w, y1 * w
+    out = 0.0 + np.take(pixels, row0 + x0, axis=0) * wy0 * wx0
+    out += np.take(pixels, row0 + x1, axis=0) * wy0 * wx1
+    out += np.take(pixels, row1 + x0, axis=0) * wy1 * wx0
+    out += np.take(pixels, row1 + x1, axis=0) * wy1 * wx1
     return out.reshape(u.shape + (img.shape[-1],))
 
 
@@ -2687,18 +2689,25 @@ def _fit_two_steps(pos, wts, ybar, E, W, scale, p, q):
     """Least squares of face | strip | outside on the bins for each (e, w): (sse, coef (G, 3), ρ (G, 3)).
 
     f = α + β·A_f + φ·A_s and r = ρ·A_s, A_f = A((e − d)/scale), A_o = A((d − e − w)/scale),
-    A_s = 1 − A_f − A_o."""
-    Af = _ramp_cdf((E[:, None] - pos[None, :]) / scale, p, q)
-    Ao = _ramp_cdf((pos[None, :] - (E + W)[:, None]) / scale, p, q)
+    A_s = 1 − A_f − A_o. The (e, w) grid repeats each e for every w and each e + w along its diagonals: A_f
+    and the sums of it alone are taken once per distinct e, A_o once per distinct e + w (0.7 of the time,
+    the same values: a row's sums are the same whatever rows lie beside it)."""
+    e_values, e_row = np.unique(E, return_inverse=True)
+    o_values, o_row = np.unique(E + W, return_inverse=True)
+    Af_once = _ramp_cdf((e_values[:, None] - pos[None, :]) / scale, p, q)
+    wAf_once = Af_once * wts
+    Af = Af_once[e_row]
+    Ao = _ramp_cdf((pos[None, :] - o_values[:, None]) / scale, p, q)[o_row]
     As = 1.0 - Af - Ao
-    wAf, wAs = Af * wts, As * wts
+    wAf, wAs = wAf_once[e_row], As * wts
     G = np.empty((len(E), 3, 3))
     G[:, 0, 0] = wts.sum()
-    G[:, 0, 1] = G[:, 1, 0] = wAf.sum(1)
+    G[:, 0, 1] = G[:, 1, 0] = wAf_once.sum(1)[e_row]
     G[:, 0, 2] = G[:, 2, 0] = wAs.sum(1)
-    G[:, 1, 1] = (wAf * Af).sum(1)
+    G[:, 1, 1] = (wAf_once * Af_once).sum(1)[e_row]
     G[:, 1, 2] = G[:, 2, 1] = (wAf * As).sum(1)
     G[:, 2, 2] = (wAs * As).sum(1)
+    # (wAf's rows in full here: OpenBLAS's matrix-vector product rounds a row by where it lies in the matrix)
     rhs = np.stack([np.full(len(E), float(wts @ ybar[:, 0])), wAf @ ybar[:, 0], wAs @ ybar[:, 0]], axis=1)
     G += np.eye(3)[None] * 1e-9
     coef = np.linalg.solve(G, rhs[..., None])[..., 0]
