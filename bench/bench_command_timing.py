@@ -86,15 +86,16 @@ def _instructions(root: Path, png: Path, out: Path, tmp: Path) -> subprocess.Pop
                             cwd=root, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
 
 
-def _collected(run: subprocess.Popen, what: str, files: list) -> int:
-    """The user-space instructions of every process of a finished `_instructions` run: the "totals:" of the
-    files it wrote (`files`: each process's, and the parts a parent dumped before each fork), which count
-    each instruction once (see the module's docstring: the processes' "Collected" lines do not)."""
+def _collected(run: subprocess.Popen, what: str, files) -> int:
+    """The user-space instructions of every process of an `_instructions` run, once it has finished: the
+    "totals:" of the files it wrote (`files()`: each process's, and the parts a parent dumped before each
+    fork), which count each instruction once (see the module's docstring: the processes' "Collected" lines
+    do not)."""
     _, err = run.communicate()
     if run.returncode != 0:
         tail = [line for line in err.strip().splitlines() if "Collected" not in line][-1:] or ["(no message)"]
         raise SystemExit(f"bench command_timing: --instructions: {what} failed: {tail[0]}")
-    totals = [int(line.split()[1]) for path in files for line in path.read_text().splitlines()
+    totals = [int(line.split()[1]) for path in files() for line in path.read_text().splitlines()
               if line.startswith("totals:")]
     if not totals:
         raise SystemExit(f"bench command_timing: --instructions: {what}: callgrind wrote no counts")
@@ -109,7 +110,8 @@ def _count(images: list, roots: dict, tmp: Path, against: str | None) -> int:
     for png in images:
         runs = {name: _instructions(root, png, tmp / f"{png.stem}.{name}.json", tmp) for name, root in roots.items()}
         for name, run in runs.items():
-            files = sorted(tmp.glob(f"{png.stem}.{roots[name].name}.*.callgrind*"))
+            def files(png=png, root=roots[name]):
+                return tmp.glob(f"{png.stem}.{root.name}.*.callgrind*")
             counts[name][png.stem] = _collected(run, f"{png.name} under {roots[name]}", files)
         for leftover in tmp.glob(f"{png.stem}.*.callgrind*"):
             leftover.unlink()

@@ -74,6 +74,17 @@ def _can_fork() -> bool:
     return not _IN_WORKER and "fork" in multiprocessing.get_all_start_methods()
 
 
+def _pool_plan(n: int, workers, cost) -> tuple[int, list, bool]:
+    """(workers, the tasks' order, whether they run in a pool: the pool's lock is then taken and must be
+    released) for `fork_map` and `fork_chain`."""
+    workers = available_cores() if workers is None else int(workers)
+    if workers < 1:
+        raise ValueError(f"workers: expected an integer >= 1, got {workers}")
+    workers = min(workers, n)
+    order = sorted(range(n), key=lambda i: -cost[i]) if cost is not None else list(range(n))
+    return workers, order, workers > 1 and _can_fork() and _LOCK.acquire(blocking=False)
+
+
 def fork_map(task, n: int, workers: int | None = None, cost=None, progress=None) -> list:
     """[task(0), ..., task(n − 1)], the tasks run in forked worker processes.
 
@@ -92,12 +103,7 @@ def fork_map(task, n: int, workers: int | None = None, cost=None, progress=None)
     task is raised here.
     """
     global _TASK
-    workers = available_cores() if workers is None else int(workers)
-    if workers < 1:
-        raise ValueError(f"workers: expected an integer >= 1, got {workers}")
-    workers = min(workers, n)
-    order = sorted(range(n), key=lambda i: -cost[i]) if cost is not None else list(range(n))
-    parallel = workers > 1 and _can_fork() and _LOCK.acquire(blocking=False)
+    workers, order, parallel = _pool_plan(n, workers, cost)
     if not parallel:
         out = [None] * n
         for done, i in enumerate(order, 1):
@@ -147,13 +153,8 @@ def fork_chain(first, second, n: int, plan, workers: int | None = None, cost=Non
     depend on it. An exception raised by a task is raised here.
     """
     global _TASK
-    workers = available_cores() if workers is None else int(workers)
-    if workers < 1:
-        raise ValueError(f"workers: expected an integer >= 1, got {workers}")
-    workers = min(workers, n)
-    order = sorted(range(n), key=lambda i: -cost[i]) if cost is not None else list(range(n))
+    workers, order, parallel = _pool_plan(n, workers, cost)
     firsts, seconds = [None] * n, [None] * n
-    parallel = workers > 1 and _can_fork() and _LOCK.acquire(blocking=False)
     if not parallel:
         ready = []
         for i in order:

@@ -527,6 +527,25 @@ def test_a_white_cube_as_noisy_as_a_path_tracers_is_found_whole(seed):
     assert abs(cube.depth - truth["depth"]) < 3.0 * cube.depth_std
 
 
+def _as_in_a_fresh_process(tmp_path, monkeypatch, name):
+    """`depth.reconstruct` set to fork its helper as in a fresh process: here the estimators' modules are imported
+    already, so a module `name` not yet imported is added to the ones the helper imports. Returns the list of
+    the helpers forked (`fork_helper`'s answers), filled as they are."""
+    import sys
+
+    import depth.reconstruct as dr
+    (tmp_path / f"{name}.py").write_text("")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, name, raising=False)
+    monkeypatch.setattr(dr, "SOLVER_MODULES", dr.SOLVER_MODULES + (name,))
+    monkeypatch.setattr(dr, "_HELPER_FORKED", False)
+    monkeypatch.setattr(dr, "_STARTED", None)
+    forked = []
+    real = dr.fork_helper
+    monkeypatch.setattr(dr, "fork_helper", lambda *a: forked.append(real(*a)) or forked[-1])
+    return forked
+
+
 @pytest.mark.parametrize("compressed", [False, True])
 def test_the_faces_outlined_in_a_helper_process_give_the_results_of_this_one(scene, tmp_path, monkeypatch, compressed):
     # A fresh process forks a helper that imports the estimators' modules while this one detects the cubes,
@@ -545,14 +564,7 @@ def test_the_faces_outlined_in_a_helper_process_give_the_results_of_this_one(sce
     calls = {"here": [], "helper": []}
     here = dr.reconstruct(img, camera, mirror, compressed=compressed,
                           progress=lambda d, t: calls["here"].append((d, t)))
-    (tmp_path / "not_yet_imported.py").write_text("")
-    monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.delitem(sys.modules, "not_yet_imported", raising=False)
-    monkeypatch.setattr(dr, "SOLVER_MODULES", dr.SOLVER_MODULES + ("not_yet_imported",))
-    monkeypatch.setattr(dr, "_HELPER_FORKED", False)  # as in a fresh process
-    forked = []
-    real = dr.fork_helper
-    monkeypatch.setattr(dr, "fork_helper", lambda *a: forked.append(real(*a)) or forked[-1])
+    forked = _as_in_a_fresh_process(tmp_path, monkeypatch, "not_yet_imported")
     shared = []  # the arrays mapped here in shared memory
     real_arrays = dr.SharedMemory.arrays
     monkeypatch.setattr(dr.SharedMemory, "arrays", lambda self, specs: shared.extend(real_arrays(self, specs))
@@ -593,15 +605,7 @@ def test_a_helper_started_before_the_inputs_are_read_serves_the_next_call_or_end
     camera, mirror = setup.camera.build(), setup.mirror.build()
     img = cv2.cvtColor(cv2.imread(str(scene / "mirror.png")), cv2.COLOR_BGR2RGB)
     here = dr.reconstruct(img, camera, mirror)
-    (tmp_path / "not_yet_imported3.py").write_text("")
-    monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.delitem(sys.modules, "not_yet_imported3", raising=False)
-    monkeypatch.setattr(dr, "SOLVER_MODULES", dr.SOLVER_MODULES + ("not_yet_imported3",))
-    monkeypatch.setattr(dr, "_HELPER_FORKED", False)  # as in a fresh process
-    monkeypatch.setattr(dr, "_STARTED", None)
-    forked = []
-    real = dr.fork_helper
-    monkeypatch.setattr(dr, "fork_helper", lambda *a: forked.append(real(*a)) or forked[-1])
+    forked = _as_in_a_fresh_process(tmp_path, monkeypatch, "not_yet_imported3")
     with dr.helper_started():
         assert len(forked) == 1 and dr._STARTED is not None
         process = forked[0]._process
@@ -655,11 +659,7 @@ def test_the_helper_estimates_the_coloured_faces_while_the_grey_search_still_run
             f.write("searched\n")
         return real_search(*args, **kwargs)
 
-    (tmp_path / "not_yet_imported2.py").write_text("")
-    monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.delitem(sys.modules, "not_yet_imported2", raising=False)
-    monkeypatch.setattr(dr, "SOLVER_MODULES", dr.SOLVER_MODULES + ("not_yet_imported2",))
-    monkeypatch.setattr(dr, "_HELPER_FORKED", False)  # as in a fresh process
+    _as_in_a_fresh_process(tmp_path, monkeypatch, "not_yet_imported2")
     monkeypatch.setattr(dr, "estimate_face", estimate)
     monkeypatch.setattr(dm, "_achromatic_regions", search)
     there = dr.reconstruct(img, camera, mirror)
