@@ -16,11 +16,12 @@ the ratio per image. A forked process starts with its parent's counts (callgrind
 of the process), so each process's "Collected" total holds its parent's instructions up to the fork too:
 summed, the parent's were counted again for each helper and worker it forked (the helper's imports once a
 worker). Hence ``--dump-before=fork``: the parent writes its counts out and zeroes them before each fork,
-and the totals of all the files written (each process's own instructions, in parts) are summed. On this VM wall and CPU times of one command vary by 10–20 % from run to run, which
-hides a change of a few per cent; instruction counts repeat to a small fraction of that. They leave out
-the kernel's work (page faults, forks: a sixth of the command's CPU) and weigh every instruction alike,
-so they say whether a change does less work, not how much sooner the command ends. Needs ``valgrind``
-(apt); about 2 minutes an image and revision, the two revisions side by side.
+and the totals of all the files written (each process's own instructions, in parts) are summed. On this
+VM wall and CPU times of one command vary by 10–20 % from run to run, which hides a change of a few per
+cent; instruction counts repeat to a small fraction of that (8a3d0f6's s03 counted twice: 9.458 and 9.456
+G). They leave out the kernel's work (page faults, forks: a sixth of the command's CPU) and weigh every
+instruction alike, so they say whether a change does less work, not how much sooner the command ends.
+Needs ``valgrind`` (apt); about 4 minutes an image, the two revisions side by side.
 """
 
 from __future__ import annotations

@@ -865,9 +865,9 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         measures, "cx" and "cy" (F, 4, N) (the points along the last axis: numpy's loops then run over
         them, not over the few vertices); "cy" times the side's sign (±1), so that outward is up for every
         point (a product by ±1 is exact, and rounding is symmetric: the crossings come out as the sign times
-        those of the unsigned coordinates, to the bit, one pass over the (K, F, 3, N) crossings fewer). Per merged face: its frame axis and its sign, for the
-        visibility test, and the points it may bound (N,). Each face images as a convex quadrilateral, so
-        a line's largest crossing of it is on an edge.
+        those of the unsigned coordinates, to the bit, one pass over the (K, F, 3, N) crossings fewer). Per
+        merged face: its frame axis and its sign, for the visibility test, and the points it may bound (N,).
+        Each face images as a convex quadrilateral, so a line's largest crossing of it is on an edge.
 
         The front face's edges (both vertices at w = 0, one of them shared with each merged face) do not
         move with the rays and are always seen: per point, only the two crossing its line count, and

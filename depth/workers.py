@@ -261,10 +261,9 @@ class Helper:
         its own."""
         try:
             self._written()
-            try:
+            with contextlib.suppress(BrokenPipeError, ConnectionResetError):
+                # (the helper has ended: the error it sent, or its end without one, is read below)
                 self._conn.send(payload)
-            except (BrokenPipeError, ConnectionResetError):
-                pass  # the helper has ended: the error it sent, or its end without one, is read below
             while True:
                 try:
                     kind, *rest = self._conn.recv()
