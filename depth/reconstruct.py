@@ -102,15 +102,19 @@ def _image_array(image, resolution) -> np.ndarray:
     return img
 
 
-def check_image(image, resolution) -> np.ndarray:
-    """Validate an RGB image array against the setup's (W, H); returns it as float64 in [0, 1]."""
+def check_image(image, resolution, out: np.ndarray | None = None) -> np.ndarray:
+    """Validate an RGB image array against the setup's (W, H); returns it as float64 in [0, 1], in `out` (a
+    float64 array of its shape) where given."""
     img = _image_array(image, resolution)
     if img.dtype == np.uint8:
-        return _from_8_bits(img)  # in [0, 1] as it is
+        return _from_8_bits(img, out)  # in [0, 1] as it is
     img = np.asarray(img, dtype=np.float64)
     if not (img.min() >= 0 and img.max() <= 1):  # NaN propagates through min and max, and fails both
         raise DepthError("image: expected values in [0, 1]")
-    return img
+    if out is None:
+        return img
+    np.copyto(out, img)
+    return out
 
 
 def _pixels(mask: np.ndarray) -> np.ndarray:
@@ -368,20 +372,13 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     # back from float64 to the bit, so it is median-filtered as it is).
     helper, memory = _take_helper()
     try:
+        out = [None, None]  # where the image and the despeckled one go: memory shared with the helper, if any
         if helper is not None:
-            img, *rest = memory.arrays([(raw.shape, np.float64)] * (2 if compressed else 1))
-            det_img = rest[0] if compressed else img
+            out = memory.arrays([(raw.shape, np.float64)] * (2 if compressed else 1))
             helper.send((_helper_faces, (memory, raw.shape, camera, mirror, method, cube_size, progress is not None,
                                          compressed, blur_domain, workers)))
-            if raw.dtype == np.uint8:
-                _from_8_bits(raw, out=img)
-            else:
-                np.copyto(img, check_image(raw, camera.resolution))
-            if compressed:
-                despeckled(raw if raw.dtype == np.uint8 else img, out=det_img)
-        else:
-            img = check_image(raw, camera.resolution)
-            det_img = despeckled(img) if compressed else img
+        img = check_image(raw, camera.resolution, out=out[0])
+        det_img = despeckled(raw if raw.dtype == np.uint8 else img, out=out[-1]) if compressed else img
         scipy_imported = import_in_background(SOLVER_MODULES) if helper is None else None
         # checked here once: not again by each face's outline, silhouette, blur evidence and regrowth
         with checked_images(img, det_img):

@@ -188,6 +188,10 @@ def test_check_image_takes_8_bit_as_it_is_and_refuses_float_values_outside_0_1()
     out = check_image(u8, (5, 4))
     assert out.dtype == np.float64 and np.array_equal(out * 255.0, u8.astype(np.float64))
     assert out.min() == 0.0 and out.max() == 1.0
+    # into a given array (`reconstruct`'s, shared with its helper), 8-bit or float, the same values
+    for given in (u8, out.copy()):
+        buffer = np.full((4, 5, 3), -1.0)
+        assert check_image(given, (5, 4), out=buffer) is buffer and np.array_equal(buffer, out)
     for bad in (np.nan, np.inf, -np.inf, 1.0 + 1e-9, -1e-9):  # one channel of one pixel
         img = out.copy()
         img[2, 3, 1] = bad
