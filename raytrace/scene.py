@@ -96,6 +96,25 @@ class Cube:
         far = np.where(d == 0, np.where(np.abs(o) <= half, np.inf, -np.inf), np.maximum(t1, t2)).min(axis=1)
         return (far >= near) & (far >= 0.0)
 
+    def entry_faces(self, origins, directions) -> np.ndarray:
+        """(N,) int: the face (0..5, `FACE_AXES`) through which each ray origin + t·direction, t > 0,
+        enters the cube, the one it would be seen by; −1 where the ray misses it, starts inside it or
+        is not finite. Slab test in the cube's frame: the face is the slab whose entry is the last."""
+        o = (np.asarray(origins, dtype=np.float64) - self.center) @ self.rotation
+        d = np.asarray(directions, dtype=np.float64) @ self.rotation
+        half = self.size / 2.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1, t2 = (-half - o) / d, (half - o) / d
+        entry = np.where(d == 0, np.where(np.abs(o) <= half, -np.inf, np.inf), np.minimum(t1, t2))
+        axis = np.argmax(np.nan_to_num(entry, nan=np.inf), axis=1)
+        rows = np.arange(len(o))
+        near = entry[rows, axis]
+        far = np.where(d == 0, np.where(np.abs(o) <= half, np.inf, -np.inf), np.maximum(t1, t2)).min(axis=1)
+        seen = (near > 0.0) & (far >= near) & np.all(np.isfinite(o) & np.isfinite(d), axis=1)
+        # entering through the +half plane means moving toward −axis: the face on the + side
+        face = 2 * axis + (d[rows, axis] > 0)
+        return np.where(seen, face, -1)
+
     @property
     def face_normals(self) -> np.ndarray:
         """(6, 3) float64 outward world normals of faces 0..5 (+x, −x, +y, −y, +z, −z local)."""

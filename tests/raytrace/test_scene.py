@@ -80,6 +80,28 @@ def test_cube_hits_agrees_with_trimesh_ray_casts():
     assert np.array_equal(got, expected)
 
 
+def test_cube_entry_faces_are_the_faces_trimesh_rays_meet_first():
+    """`Cube.entry_faces` against trimesh's first ray–triangle hit on a box built from the vertices alone
+    (`_box_faces`, its quads mapped to `FACE_AXES` here): from outside, the face met first; from inside,
+    behind the cube or beside it, −1."""
+    rng = np.random.default_rng(5)
+    cube = Cube(0.2, np.array([-0.1, 0.3, 0.4]), Rotation.from_euler("xyz", [-40, 15, 70], degrees=True).as_matrix())
+    origins = cube.center + rng.uniform(-0.5, 0.5, (2000, 3))
+    dirs = cube.center + rng.uniform(-0.15, 0.15, (2000, 3)) - origins
+    dirs[::3] *= -1.0  # a third point away from the cube
+    mesh = trimesh.Trimesh(cube.vertices(), _box_faces(), process=False)
+    tri = mesh.ray.intersects_first(origins, dirs)
+    quad_face = np.array([1, 0, 3, 2, 5, 4])  # _box_faces' quads: −x, +x, −y, +y, −z, +z
+    expected = np.where(tri >= 0, quad_face[tri // 2], -1)
+    inside = np.all(np.abs((origins - cube.center) @ cube.rotation) < cube.size / 2, axis=1)
+    expected[inside] = -1
+    got = cube.entry_faces(origins, dirs)
+    assert np.all(np.bincount(got[got >= 0], minlength=6) > 20) and np.count_nonzero(got < 0) > 200
+    assert np.array_equal(got, expected)
+    nan = np.full((1, 3), np.nan)
+    assert cube.entry_faces(nan, dirs[:1])[0] == -1 and cube.entry_faces(origins[:1], nan)[0] == -1
+
+
 def _box_faces():
     """Triangles of the cube with `Cube.vertices`' numbering (bit 0: x, bit 1: y, bit 2: z)."""
     quads = [(0, 2, 6, 4), (1, 5, 7, 3), (0, 4, 5, 1), (2, 3, 7, 6), (0, 1, 3, 2), (4, 6, 7, 5)]
