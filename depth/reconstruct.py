@@ -234,7 +234,7 @@ def _face_colours(img, rays, cube: Cube, window) -> list:
     """Per face of `cube` (`raytrace.scene.FACE_AXES`), the colour the image shows where its reflected rays
     enter the cube through that face, more than a pixel in from every edge (the face's label mask eroded
     by a 3×3 square): (pixel count, mean (C,), standard deviation (C,)); the count 0 where there are none.
-    `window` (row0, row1, col0, col1) bounds the pixels tested."""
+    `img` is the (H, W, C) image, `window` (row0, row1, col0, col1) bounds the pixels tested."""
     r0, r1, c0, c1 = window
     yy, xx = np.mgrid[r0:r1, c0:c1]
     origins, directions = rays(np.column_stack([xx.ravel(), yy.ravel()]).astype(np.float64))
@@ -264,7 +264,7 @@ def _flat_region_reason(img, rays, est: CubeEstimate, blob_mask, up, sky) -> str
     A real cube read with its front face's upper part taken for a merged top face is refused so too: that
     reading is wrong either way, and a cube whose top face is as bright as what lies behind it (no part
     of the blob) looks like a shadow."""
-    if up is None or sky is None or blob_mask is None:
+    if up is None or sky is None or blob_mask is None:  # (`img`: float values in [0, 1])
         return None
     ys, xs = np.nonzero(blob_mask)
     h, w = blob_mask.shape
