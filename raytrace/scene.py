@@ -84,33 +84,36 @@ class Cube:
         signs = np.stack([(k & 1) > 0, (k & 2) > 0, (k & 4) > 0], axis=1) * 1.0 - 0.5
         return self.center + (signs * self.size) @ self.rotation.T
 
-    def hits(self, origins, directions) -> np.ndarray:
-        """(N,) bool: whether each ray origin + t·direction, t ≥ 0, meets the cube (slab test in the
-        cube's frame; a ray parallel to a pair of faces meets it only between them)."""
-        o = (np.asarray(origins, dtype=np.float64) - self.center) @ self.rotation
-        d = np.asarray(directions, dtype=np.float64) @ self.rotation
-        half = self.size / 2.0
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t1, t2 = (-half - o) / d, (half - o) / d
-        near = np.where(d == 0, np.where(np.abs(o) <= half, -np.inf, np.inf), np.minimum(t1, t2)).max(axis=1)
-        far = np.where(d == 0, np.where(np.abs(o) <= half, np.inf, -np.inf), np.maximum(t1, t2)).min(axis=1)
-        return (far >= near) & (far >= 0.0)
-
-    def entry_faces(self, origins, directions) -> np.ndarray:
-        """(N,) int: the face (0..5, `FACE_AXES`) through which each ray origin + t·direction, t > 0,
-        enters the cube, the one it would be seen by; −1 where the ray misses it, starts inside it or
-        is not finite. Slab test in the cube's frame: the face is the slab whose entry is the last."""
+    def _slabs(self, origins, directions):
+        """The slab test in the cube's frame: the rays' local directions (N, 3), the parameter t at which each
+        ray enters each pair of face planes (N, 3; −inf where it runs between a pair, inf where beside it)
+        and the one at which it leaves the cube (N,)."""
         o = (np.asarray(origins, dtype=np.float64) - self.center) @ self.rotation
         d = np.asarray(directions, dtype=np.float64) @ self.rotation
         half = self.size / 2.0
         with np.errstate(divide="ignore", invalid="ignore"):
             t1, t2 = (-half - o) / d, (half - o) / d
         entry = np.where(d == 0, np.where(np.abs(o) <= half, -np.inf, np.inf), np.minimum(t1, t2))
-        axis = np.argmax(np.nan_to_num(entry, nan=np.inf), axis=1)
-        rows = np.arange(len(o))
-        near = entry[rows, axis]
         far = np.where(d == 0, np.where(np.abs(o) <= half, np.inf, -np.inf), np.maximum(t1, t2)).min(axis=1)
-        seen = (near > 0.0) & (far >= near) & np.all(np.isfinite(o) & np.isfinite(d), axis=1)
+        return d, entry, far
+
+    def hits(self, origins, directions) -> np.ndarray:
+        """(N,) bool: whether each ray origin + t·direction, t ≥ 0, meets the cube (slab test in the
+        cube's frame; a ray parallel to a pair of faces meets it only between them)."""
+        _, entry, far = self._slabs(origins, directions)
+        near = entry.max(axis=1)
+        return (far >= near) & (far >= 0.0)
+
+    def entry_faces(self, origins, directions) -> np.ndarray:
+        """(N,) int: the face (0..5, `FACE_AXES`) through which each ray origin + t·direction, t > 0,
+        enters the cube, the one it would be seen by; −1 where the ray misses it, starts inside it or
+        is not finite. The face is that of the pair of planes the ray enters last."""
+        d, entry, far = self._slabs(origins, directions)
+        axis = np.argmax(np.nan_to_num(entry, nan=np.inf), axis=1)
+        rows = np.arange(len(d))
+        near = entry[rows, axis]
+        finite = np.all(np.isfinite(np.asarray(origins, dtype=np.float64)) & np.isfinite(d), axis=1)
+        seen = (near > 0.0) & (far >= near) & finite
         # entering through the +half plane means moving toward −axis: the face on the + side
         face = 2 * axis + (d[rows, axis] > 0)
         return np.where(seen, face, -1)

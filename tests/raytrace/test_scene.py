@@ -98,6 +98,14 @@ def test_cube_entry_faces_are_the_faces_trimesh_rays_meet_first():
     got = cube.entry_faces(origins, dirs)
     assert np.all(np.bincount(got[got >= 0], minlength=6) > 20) and np.count_nonzero(got < 0) > 200
     assert np.array_equal(got, expected)
+    # rays exactly parallel to four faces (an axis-aligned cube), between their planes or beside them
+    square = Cube(0.2, np.array([-0.1, 0.3, 0.4]))
+    along = np.column_stack([np.full(40, -1.0), rng.uniform(-0.15, 0.15, (40, 2))])
+    tri = trimesh.Trimesh(square.vertices(), _box_faces(), process=False).ray.intersects_first(
+        square.center + along, np.tile([1.0, 0.0, 0.0], (40, 1)))
+    got = square.entry_faces(square.center + along, np.tile([1.0, 0.0, 0.0], (40, 1)))
+    assert np.count_nonzero(got == 1) > 10 and np.count_nonzero(got < 0) > 10  # through −x, or beside
+    assert np.array_equal(got, np.where(tri >= 0, quad_face[tri // 2], -1))
     nan = np.full((1, 3), np.nan)
     assert cube.entry_faces(nan, dirs[:1])[0] == -1 and cube.entry_faces(origins[:1], nan)[0] == -1
 
