@@ -39,11 +39,31 @@ def side_offsets(measured: list, truth: list) -> np.ndarray:
     return np.array(out)
 
 
-def measure(variant: str, blur_domain: str = "auto") -> tuple[np.ndarray, np.ndarray]:
+def side_face_widths(camera, mirror, truth_cube: dict, order) -> np.ndarray:
+    """How far (px) the cube's side face shows beyond the left and right sides of its true front face (2,):
+    the median over each side's length of the horizontal distance, outward, from the exact reflection of
+    the front face's vertical edge to that of the back edge behind it, at the same height on the cube;
+    0 or less where that side face is hidden. `order`: `true_sides`' (left, right, top, bottom) indices
+    into the front face's corner-to-corner edges."""
+    from raytrace.truth import reflection_pixels
+    corners = np.asarray(truth_cube["front_face_corners"])
+    normal = np.asarray(truth_cube["front_face_center"]) - np.asarray(truth_cube["center"])
+    back = -truth_cube["size"] * normal / np.linalg.norm(normal)  # from a front vertex to the one behind it
+    s = np.linspace(0.0, 1.0, 101)[:, None]
+    out = []
+    for k, sign in zip(order[:2], (-1.0, 1.0)):
+        edge = corners[k] + s * (corners[(k + 1) % 4] - corners[k])
+        front, behind = (reflection_pixels(camera, mirror, e)[0][:, 0] for e in (edge, edge + back))
+        out.append(float(np.nanmedian(sign * (behind - front))))
+    return np.array(out)
+
+
+def measure(variant: str, blur_domain: str = "auto", widths: list | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Per-side offsets (N, 4) of every outlined face of the held-out scenes in `variant`, and
     whether each face's outline found its edges blurred (`FaceOutline.blurred`) (N,). Blurred faces
     are measured as `depth.reconstruct` does: `blur_domain` "auto" takes the image's
-    `blur_domain_verdict`; "linear" or "encoded" force one reading."""
+    `blur_domain_verdict`; "linear" or "encoded" force one reading. `widths`, given, gets each face's
+    `side_face_widths` (a (2,) array per face, in the rows' order)."""
     from bench.bench_reconstruct import our_render, true_sides, variant as degrade
     from bench.scenes import make_scenes
     from depth.measure import blur_domain_verdict, detect_cubes, face_outline
@@ -70,6 +90,8 @@ def measure(variant: str, blur_domain: str = "auto") -> tuple[np.ndarray, np.nda
             sides, order = true_sides(cam, mir, truth[j], per_side=400, ends=0.0)
             rows.append(side_offsets(outline.sides, [sides[i] for i in order]))
             blurred.append(outline.blurred)
+            if widths is not None:
+                widths.append(side_face_widths(cam, mir, truth[j], order))
     return np.array(rows), np.array(blurred, dtype=bool)
 
 
@@ -80,15 +102,46 @@ def _row(name: str, off: np.ndarray) -> str:
             f"{np.sqrt(np.mean(off ** 2)):6.3f} {np.percentile(np.abs(off), 90):9.3f}")
 
 
+SUB_PIXEL_PX = 1.0
+"""A side face showing less than this beyond the front face's side is `side_face_table`'s sub-pixel one."""
+
+
+def side_face_table(beside: dict, log=print) -> None:
+    """The left/right sides' offsets (`measure`) split by the side face beyond them (`side_face_widths` w):
+    hidden (w ≤ 0), sub-pixel (0 < w < `SUB_PIXEL_PX`) or wider. Beside a sub-pixel side face the outline
+    cannot tell the two edges apart; the measured side lies at a share α = offset / w of the side face's
+    width: 0 at the front face's edge, 1 at the back edge, the cube's outer contour, as `exact` reads a
+    side with no distinct side face beside it. α is where the side face's brightness lies between the
+    outside's (0) and the front face's (1). `beside`: variant → (offsets (N, 2), widths (N, 2), blurred (N,))."""
+    log("left/right sides by the side face beyond them (w, px); α = offset / w beside a sub-pixel one (0: the front "
+        "face's edge, 1: the back edge)")
+    log(f"{'variant':8s} {'hidden':>6s} {'median':>7s} {'sub-px':>6s} {'median':>7s} {'α q25':>6s} {'α med':>6s} "
+        f"{'α q75':>6s} {'wider':>5s} {'median':>7s}")
+    for v, (off, w, blurred) in beside.items():
+        faces = ~blurred if v in ("clean", "noise") else np.ones_like(blurred)  # (the blur variant's: blurred)
+        off, w = off[faces].ravel(), w[faces].ravel()
+        hidden, sub = w <= 0.0, (w > 0.0) & (w < SUB_PIXEL_PX)
+        wider = w >= SUB_PIXEL_PX
+        share = off[sub] / w[sub]
+        cells = [f"{v:8s}"]
+        for sel in (hidden, sub):
+            cells += [f"{sel.sum():6d}", f"{np.median(off[sel]):+7.3f}" if sel.any() else f"{'—':>7s}"]
+        cells += [f"{q:6.2f}" for q in np.percentile(share, [25, 50, 75])] if sub.any() else [f"{'—':>6s}"] * 3
+        cells += [f"{wider.sum():5d}", f"{np.median(off[wider]):+7.3f}" if wider.any() else f"{'—':>7s}"]
+        log(" ".join(cells) + ("   (sharp faces)" if v in ("clean", "noise") else "   (all faces)"))
+
+
 def main() -> int:
     from depth.estimate import EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED
     print(f"held-out scenes make_scenes({N}, seed={SEED}); per-side offset of measured edges from the truth, px "
           "(positive outward); PNG faces split by FaceOutline.blurred")
     print(f"{'variant':16s} {'sides':>5s} {'median':>7s} {'robust sd':>9s} {'√(m²+sd²)':>9s} {'rms':>6s} "
           f"{'90% |off|':>9s}")
-    sharp, soft = [], []
+    sharp, soft, beside = [], [], {}
     for v in VARIANTS:
-        off, blurred = measure(v)
+        widths = []
+        off, blurred = measure(v, widths=widths)
+        beside[v] = (off[:, :2], np.array(widths).reshape(-1, 2), blurred)
         print(_row(v, off.ravel()), f"  ({blurred.sum()}/{len(blurred)} faces blurred)", flush=True)
         if v != "jpeg":
             sharp.append(off[~blurred].ravel())
@@ -98,6 +151,7 @@ def main() -> int:
     off, blurred = measure("blur", blur_domain="linear")
     print(_row("blur, all linear", off[blurred].ravel()), "  (blurred faces read as optical blur: the σ = 0.7 px "
           "blur of the stored values moves edges toward the brighter side)")
+    side_face_table(beside)
     print(f"in use: EDGE_BIAS_PX = {EDGE_BIAS_PX} (PNG), EDGE_BIAS_PX_BLURRED = {EDGE_BIAS_PX_BLURRED} "
           f"(PNG, blurred edges), EDGE_BIAS_PX_COMPRESSED = {EDGE_BIAS_PX_COMPRESSED} (JPEG)")
     return 0
