@@ -12,7 +12,8 @@ heavy tail the constants must also cover; see bench/README.md). Blurred faces ar
 domain `depth.reconstruct` would choose (`depth.measure.blur_domain_verdict`); one more row shows the
 blurred faces of the blur variant all read as optical (linear) blur, the reading before 2026-11-22.
 
-Run: `python -m bench edges` (renders cached in bench/out/renders/).
+Run: `python -m bench edges` (renders cached in bench/out/renders/). With `--holdout`, the same tables on the
+`bench.holdout` renders instead (Mitsuba 3: another renderer, a floor, a sky and a sun).
 """
 
 from __future__ import annotations
@@ -58,24 +59,42 @@ def side_face_widths(camera, mirror, truth_cube: dict, order) -> np.ndarray:
     return np.array(out)
 
 
-def measure(variant: str, blur_domain: str = "auto", widths: list | None = None) -> tuple[np.ndarray, np.ndarray]:
+def _our_images(variant: str):
+    """(setup, image (H, W, 3) uint8) of each of this bench's scenes, our render in `variant`."""
+    from bench.bench_reconstruct import our_render, variant as degrade
+    from bench.scenes import make_scenes
+    for sc in make_scenes(N, SEED):
+        yield sc.setup, degrade(our_render(sc.setup), variant, seed=int(sc.key[:8], 16))
+
+
+def _holdout_images():
+    """(setup, image) of every `bench.holdout` render (seeds `bench.holdout.SEEDS`, PNG, odd scenes grey)."""
+    from bench.holdout import SEEDS, renders
+    for seed in SEEDS:
+        for _, setup, _, _, img in renders(seed):
+            yield setup, img
+
+
+def measure(variant: str, blur_domain: str = "auto", widths: list | None = None,
+            images=None) -> tuple[np.ndarray, np.ndarray]:
     """Per-side offsets (N, 4) of every outlined face of the held-out scenes in `variant`, and
     whether each face's outline found its edges blurred (`FaceOutline.blurred`) (N,). Blurred faces
     are measured as `depth.reconstruct` does: `blur_domain` "auto" takes the image's
     `blur_domain_verdict`; "linear" or "encoded" force one reading. `widths`, given, gets each face's
-    `side_face_widths` (a (2,) array per face, in the rows' order)."""
-    from bench.bench_reconstruct import our_render, true_sides, variant as degrade
-    from bench.scenes import make_scenes
+    `side_face_widths` (a (2,) array per face, in the rows' order). `images`: (setup, uint8 image) pairs
+    to measure instead of this bench's scenes (`variant` then says only whether they are JPEG)."""
+    from bench.bench_lighting import MATCH_PX
+    from bench.bench_reconstruct import true_sides
     from depth.measure import blur_domain_verdict, detect_cubes, face_outline
     from depth.reconstruct import despeckled
     from raytrace.truth import cube_truth, mirror_mask
     compressed = variant == "jpeg"
     rows, blurred = [], []
-    for sc in make_scenes(N, SEED):
-        cam, mir = sc.setup.camera.build(), sc.setup.mirror.build()
-        truth = [cube_truth(cam, mir, c.build()) for c in sc.setup.objects]
+    for setup, img in _our_images(variant) if images is None else images:
+        cam, mir = setup.camera.build(), setup.mirror.build()
+        truth = [cube_truth(cam, mir, c.build()) for c in setup.objects]
         centres = np.array([np.mean(t["front_face_corners_px"], axis=0) for t in truth])
-        img = degrade(our_render(sc.setup), variant, seed=int(sc.key[:8], 16)).astype(np.float64) / 255.0
+        img = img.astype(np.float64) / 255.0
         kw = dict(thin_strips=not compressed, channels="luma" if compressed else "colour")
         faces = [(det, face_outline(img, det.front_face_mask, **kw))
                  for det in detect_cubes(despeckled(img) if compressed else img, mirror_mask(cam, mir))
@@ -86,7 +105,10 @@ def measure(variant: str, blur_domain: str = "auto", widths: list | None = None)
                 continue
             if outline.blurred and domain == "encoded":
                 outline = face_outline(img, det.front_face_mask, blur_domain="encoded", **kw)
-            j = int(np.argmin(np.linalg.norm(centres - outline.corners_px.mean(axis=0), axis=1)))
+            dist = np.linalg.norm(centres - outline.corners_px.mean(axis=0), axis=1)
+            j = int(np.nanargmin(dist))
+            if not dist[j] <= MATCH_PX:  # no cube's (a holdout's floor shadow, say)
+                continue
             sides, order = true_sides(cam, mir, truth[j], per_side=400, ends=0.0)
             rows.append(side_offsets(outline.sides, [sides[i] for i in order]))
             blurred.append(outline.blurred)
@@ -118,7 +140,7 @@ def side_face_table(beside: dict, log=print) -> None:
     log(f"{'variant':8s} {'hidden':>6s} {'median':>7s} {'sub-px':>6s} {'median':>7s} {'α q25':>6s} {'α med':>6s} "
         f"{'α q75':>6s} {'wider':>5s} {'median':>7s}")
     for v, (off, w, blurred) in beside.items():
-        faces = ~blurred if v in ("clean", "noise") else np.ones_like(blurred)  # (the blur variant's: blurred)
+        faces = ~blurred if v in ("clean", "noise") else np.ones_like(blurred)  # (blur: its faces are blurred)
         off, w = off[faces].ravel(), w[faces].ravel()
         hidden, sub = w <= 0.0, (w > 0.0) & (w < SUB_PIXEL_PX)
         wider = w >= SUB_PIXEL_PX
@@ -131,8 +153,29 @@ def side_face_table(beside: dict, log=print) -> None:
         log(" ".join(cells) + ("   (sharp faces)" if v in ("clean", "noise") else "   (all faces)"))
 
 
+def holdout_table(log=print) -> None:
+    """Both tables on the Mitsuba holdout renders (`python -m bench edges --holdout`): another renderer (a
+    Gaussian pixel filter, which reads most faces as blurred), a floor, a sky and a sun."""
+    from bench import mitsuba_scenes as ms
+    if not ms.mitsuba_available():
+        log("bench edges --holdout: Mitsuba 3 is not installed (pip install -e '.[bench]'); skipped")
+        return
+    log("holdout renders (bench.holdout seeds, PNG, odd scenes grey); per-side offset of measured edges from the "
+        "truth, px (positive outward)")
+    widths = []
+    off, blurred = measure("clean", widths=widths, images=_holdout_images())
+    log(f"{'faces':16s} {'sides':>5s} {'median':>7s} {'robust sd':>9s} {'√(m²+sd²)':>9s} {'rms':>6s} {'90% |off|':>9s}")
+    log(_row("all", off.ravel()), f"  ({blurred.sum()}/{len(blurred)} faces blurred)")
+    log(_row("sharp", off[~blurred].ravel()))
+    log(_row("blurred", off[blurred].ravel()))
+    side_face_table({"holdout": (off[:, :2], np.array(widths).reshape(-1, 2), blurred)}, log)
+
+
 def main() -> int:
     from depth.estimate import EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED
+    if "--holdout" in sys.argv:
+        holdout_table()
+        return 0
     print(f"held-out scenes make_scenes({N}, seed={SEED}); per-side offset of measured edges from the truth, px "
           "(positive outward); PNG faces split by FaceOutline.blurred")
     print(f"{'variant':16s} {'sides':>5s} {'median':>7s} {'robust sd':>9s} {'√(m²+sd²)':>9s} {'rms':>6s} "

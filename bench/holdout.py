@@ -21,17 +21,30 @@ import sys
 import numpy as np
 
 
+SEEDS = (3030, 4040, 5050, 6060, 7070, 8080, 9090)
+"""The seeds bench/README.md reports."""
+
+
+def renders(seed: int, all_grey: bool = False):
+    """The held-out scenes of `seed`, each as (index, setup as rendered, scene of `make_scenes(8, seed)`, whether
+    its cubes were painted grey, the Mitsuba render (H, W, 3) uint8), rendering those not cached yet."""
+    from bench.bench_lighting import greyed, mitsuba_cached, sky_map
+    from bench.scenes import make_scenes
+    rng = np.random.default_rng(seed + 7)
+    for i, sc in enumerate(make_scenes(8, seed)):
+        travel = (float(rng.uniform(-1, 1)), float(-rng.uniform(0.3, 1.0)), float(rng.uniform(-1, 1)))
+        sun, albedo = float(rng.uniform(1.0, 3.0)), float(rng.uniform(0.2, 0.7))
+        grey = bool(i % 2 or all_grey)
+        setup = greyed(sc.setup) if grey else sc.setup
+        img = mitsuba_cached(setup, f"holdout{seed}-floor{albedo}-{travel}-{sun}", "holdout", travel, sun, 0.0,
+                             sky_map=sky_map(), floor_albedo=albedo)
+        yield i, setup, sc, grey, img
+
+
 def main(argv=None) -> int:
     from bench import mitsuba_scenes as ms
-    from bench.bench_lighting import (
-        greyed,
-        invented_line,
-        match,
-        mitsuba_cached,
-        sky_map,
-    )
+    from bench.bench_lighting import invented_line, match
     from bench.bench_reconstruct import OUT, variant
-    from bench.scenes import make_scenes
     from depth.reconstruct import reconstruct
     from raytrace.truth import cube_truth
 
@@ -45,15 +58,8 @@ def main(argv=None) -> int:
     if not ms.mitsuba_available():
         print("bench.holdout: Mitsuba 3 is not installed (pip install -e '.[bench]'); skipped")
         return 0
-    rng = np.random.default_rng(seed + 7)
     res, fps = {}, []
-    for i, sc in enumerate(make_scenes(8, seed)):
-        travel = (float(rng.uniform(-1, 1)), float(-rng.uniform(0.3, 1.0)), float(rng.uniform(-1, 1)))
-        sun, albedo = float(rng.uniform(1.0, 3.0)), float(rng.uniform(0.2, 0.7))
-        grey = bool(i % 2 or all_grey)
-        setup = greyed(sc.setup) if grey else sc.setup
-        img = mitsuba_cached(setup, f"holdout{seed}-floor{albedo}-{travel}-{sun}", "holdout", travel, sun, 0.0,
-                             sky_map=sky_map(), floor_albedo=albedo)
+    for i, setup, sc, grey, img in renders(seed, all_grey):
         if jpeg:
             img = variant(img, "jpeg", seed=0)
         cam, mir = setup.camera.build(), setup.mirror.build()
