@@ -2286,11 +2286,12 @@ def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25, 
     prof = _profiles(linear, points, normals, half_width, step)  # (N, K, 3) or, with luma, (N, K, 4)
     luma = prof[..., 3] if prof.shape[-1] == 4 else None
     prof = prof[..., :3]
-    qs, contrasts, affine = [], [], []
+    qs, contrasts, affine, ends = [], [], [], []
     for reduce in (_chroma, lambda c: c):
         p = reduce(prof)
         # Levels at exactly ±L: nearer samples mix in the edge through the bilinear footprint.
         c_in, c_out = _along_side(p[:, 0]), _along_side(p[:, -1])
+        ends.append((c_in, c_out))
         d = c_in - c_out
         dd = np.sum(d * d, axis=1)
         safe = np.where(dd > 0, dd, 1.0)
@@ -2304,7 +2305,7 @@ def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25, 
         y_in, y_out = _along_side(luma[:, 0]), _along_side(luma[:, -1])
         dy = y_in - y_out
         use_luma = np.abs(dy) >= min_contrast
-        q = np.where(use_luma[:, None], (luma - y_out[:, None]) / np.where(use_luma, dy, 1.0)[:, None], q)
+        q = np.where(use_luma[:, None], _luma_coverage(luma, y_in, y_out, *ends[1]), q)
         contrast = np.where(use_luma, np.abs(dy), contrast)
     area = np.sum((q[:, 1:] + q[:, :-1]) * 0.5, axis=1) * step
     if len(q) and luma is None and not compressed:  # (JPEG: its ringing overshoots on both sides, and cancels)
@@ -2329,6 +2330,78 @@ def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25, 
                                                        colour_half_width, min_contrast, step, compressed=True)
         reach[colour] = colour_half_width
     return e, contrast, reach
+
+
+_LUMA_BISECTIONS = 8
+"""Halvings of the coverage's bracket [0, 1] in `_luma_coverage` (to 1/256) before its Newton steps."""
+
+_LUMA_NEWTON_STEPS = 2
+"""Newton steps of `_luma_coverage` within the bracket: the luma's slope there is at least `_LUMA_MIN_SLOPE`,
+so each squares the error (to under 1e-9 after two; 40 halvings alone took 0.29 s of a 2048×1536 JPEG image's
+2.6 s on one core)."""
+
+_LUMA_MIN_SLOPE = 1.0 / 3.0
+"""Least slope of the luma's share of its step against the coverage (1 where linear) for `_luma_coverage` to
+invert it: its noise is then amplified at most 3 times. Pale or saturated faces before a neutral background
+keep 0.5–0.7; a yellow-green face before a grey floor whose luma steps 6 levels of 255, its green and blue
+channels stepping in opposite ways, falls to −0.2 (the luma dips, then rises)."""
+
+
+def _srgb_slope(lin: np.ndarray) -> np.ndarray:
+    """Derivative of the sRGB transfer function (`_linear_to_srgb`) at linear values `lin` (clipped to [0, 1])."""
+    lin = np.clip(lin, 0.0, 1.0)
+    return np.where(lin <= 0.0031308, 12.92, (1.055 / 2.4) * np.maximum(lin, 0.0031308) ** (1.0 / 2.4 - 1.0))
+
+
+def _luma_coverage(luma, y_in, y_out, c_in, c_out) -> np.ndarray:
+    """The share of each sample of a luma profile covered by the inside, (N, K).
+
+    `luma` (N, K) is JPEG's luma Y' = 0.299 R' + 0.587 G' + 0.114 B' of the sRGB-encoded colours, taken
+    to linear light (`_edge_image`); `y_in`, `y_out` (N,) its levels at the profile's ends, `c_in`, `c_out`
+    (N, 3) the linear colours there. A pixel that covers a share t of the inside holds the linear colour
+    t·c_in + (1 − t)·c_out, but its luma is a sum of each channel encoded: for two colours of one hue (a
+    grey face before a grey sky) the luma taken to linear light is linear in t, while across a coloured
+    edge it is not, and its area puts the edge inward of where it lies: 0.02–0.05 px per pixel of the
+    edge's ramp for a red, green or blue face before a pale background (a coloured face read 0.08–0.13 px
+    narrower in JPEG than in PNG on the holdout renders, its depth 2 % further). Here t solves
+    Y'(t) = Y'(0) + u·(Y'(1) − Y'(0)) for the measured share u of the luma step (in encoded values), with
+    Y'(t) the luma of t·c_in + (1 − t)·c_out, by bisection, then Newton's method (the share rises from 0 to
+    1). Where the colours do not step as the luma does (their luma step under half the measured one, or of
+    the other sign, as where the chroma at the ends is smeared) or their luma rises too unevenly
+    (`_LUMA_MIN_SLOPE`), and beyond the step's ends, the linear reading stays."""
+    dy = np.where(y_in != y_out, y_in - y_out, 1.0)
+    t = (luma - y_out[:, None]) / dy[:, None]  # the linear reading
+    enc_in, enc_out = _linear_to_srgb(y_in), _linear_to_srgb(y_out)
+    u = (_linear_to_srgb(luma) - enc_out[:, None]) / np.where(enc_in != enc_out, enc_in - enc_out, 1.0)[:, None]
+    f0, f1 = _linear_to_srgb(c_out) @ _LUMA, _linear_to_srgb(c_in) @ _LUMA
+    df = f1 - f0
+    model = (np.abs(df) >= 0.5 * np.abs(enc_in - enc_out)) & (np.sign(df) == np.sign(enc_in - enc_out)) & (df != 0.0)
+    d = c_in - c_out
+    span = np.where(model, df, 1.0)[:, None]
+    # the model's slope across the step: where the luma does not rise steadily with the coverage (channels
+    # stepping in opposite ways nearly cancel in it) the inverse is ill-posed, and the linear reading stays
+    grid = c_out[:, None, :] + np.linspace(0.0, 1.0, 9)[None, :, None] * d[:, None, :]
+    model &= np.min((_srgb_slope(grid) * d[:, None, :]) @ _LUMA / span, axis=1) >= _LUMA_MIN_SLOPE
+    # within the step only: beyond its ends (JPEG's ringing) the two readings meet at 0 and 1
+    inside = model[:, None] & (t > 0.0) & (t < 1.0) & (u > 0.0) & (u < 1.0)
+    if not inside.any():
+        return t
+    rows, cols = np.nonzero(inside)
+    target, lo, hi = u[rows, cols], np.zeros(len(rows)), np.ones(len(rows))
+    base, step, scale = c_out[rows], d[rows], span[rows, 0]
+    for _ in range(_LUMA_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        below = (_linear_to_srgb(base + mid[:, None] * step) @ _LUMA - f0[rows]) / scale < target
+        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
+    cover = 0.5 * (lo + hi)
+    for _ in range(_LUMA_NEWTON_STEPS):
+        mix = base + cover[:, None] * step
+        share = (_linear_to_srgb(mix) @ _LUMA - f0[rows]) / scale
+        slope = (_srgb_slope(mix) * step) @ _LUMA / scale
+        cover = np.clip(cover - (share - target) / np.maximum(slope, _LUMA_MIN_SLOPE), lo, hi)
+    out = t.copy()
+    out[rows, cols] = cover
+    return out
 
 
 _ONE_PHASE = 0.9

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import example, given, settings
+from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
 from depth.errors import DepthError
@@ -1380,6 +1380,89 @@ def test_luma_falls_back_to_colour_where_luma_shows_no_edge():
     assert corner_errors(luma, face).max() <= 0.1
     with pytest.raises(DepthError, match="channels: expected one of colour, luma"):
         face_outline(image, mask, channels="rgb")
+
+
+def _coloured_rectangle(face8, background8, left, right, top, bottom, shape=(96, 96), ss=16):
+    """An sRGB image of an upright rectangle of colour `face8` (8-bit sRGB) before `background8`, each pixel the
+    mix in linear light of the two by the share of its area the rectangle covers (ss × ss samples), and the
+    mask of the pixels it covers over half."""
+    h, w = shape
+    xs, ys = (np.arange(w * ss) + 0.5) / ss, (np.arange(h * ss) + 0.5) / ss
+    inside = ((xs >= left) & (xs < right))[None, :] & ((ys >= top) & (ys < bottom))[:, None]
+    cover = inside.reshape(h, ss, w, ss).mean(axis=(1, 3))[..., None]
+    face, background = srgb_to_linear(np.array(face8) / 255.0), srgb_to_linear(np.array(background8) / 255.0)
+    return linear_to_srgb(cover * face + (1.0 - cover) * background), cover[..., 0] > 0.5
+
+
+@pytest.mark.parametrize("face8, background8", [((200, 40, 40), (200, 200, 200)), ((40, 150, 60), (225, 225, 215)),
+                                                ((128, 128, 128), (200, 200, 200))])
+def test_a_coloured_jpeg_face_is_outlined_on_luma_at_its_true_width(face8, background8):
+    """JPEG's luma Y' = 0.299 R' + 0.587 G' + 0.114 B' sums the channels after their sRGB encoding: across the
+    edge of a coloured face it is not linear in the share of a pixel the face covers, even taken to linear
+    light, and its area put each side inward: the red face before grey read 0.13 px narrower (median over five
+    phases), the green one 0.05 px. Read as the coverage that mix's luma gives, the width comes back to within
+    0.02 px (the phases scatter by up to 0.055 px through JPEG's blocks); a grey face, whose luma is linear, is
+    the control."""
+    widths = []
+    for left in np.linspace(30.1, 30.9, 5):
+        right = left + 23.37
+        image, mask = _coloured_rectangle(face8, background8, left, right, 20.3, 75.6)
+        outline = face_outline(jpeg(image, 95), mask, channels="luma", thin_strips=False)
+        assert outline
+        widths.append(np.median(outline.sides[1][:, 0]) - np.median(outline.sides[0][:, 0]) - (right - left))
+    assert abs(np.median(widths)) <= 0.02 and np.max(np.abs(widths)) <= 0.08
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.integers(0, 255), min_size=3, max_size=3), st.lists(st.integers(0, 255), min_size=3, max_size=3),
+       st.lists(st.floats(0.0, 1.0), min_size=1, max_size=12))
+def test_luma_coverage_inverts_the_luma_of_two_colours_mixed_in_linear_light(a8, b8, shares):
+    """Two colours stepping the same way in every channel (so that the luma rises with the share), their luma
+    step 20 levels of 255 or more: the coverage read from the luma of each linear mix is that mix's share.
+    A grey pair's coverage is the luma's linear reading itself."""
+    from depth.measure import _luma_coverage
+    lo, hi = np.minimum(a8, b8), np.maximum(a8, b8)
+    weights = np.array([0.299, 0.587, 0.114])
+    assume((linear_to_srgb(srgb_to_linear(hi / 255.0)) - linear_to_srgb(srgb_to_linear(lo / 255.0))) @ weights
+           >= 20 / 255)
+    c_in, c_out = srgb_to_linear(hi / 255.0), srgb_to_linear(lo / 255.0)  # the face brighter here; both ways below
+    t = np.array(shares)
+    for inside, outside, cover in ((c_in, c_out, t), (c_out, c_in, t)):
+        mix = outside + cover[:, None] * (inside - outside)
+        luma = srgb_to_linear(linear_to_srgb(mix) @ weights)[None]
+        y_in, y_out = (srgb_to_linear(np.array([linear_to_srgb(c) @ weights])) for c in (inside, outside))
+        got = _luma_coverage(luma, y_in, y_out, inside[None], outside[None])[0]
+        assert np.allclose(got, cover, atol=1e-6)
+    grey_in, grey_out = np.full(3, c_in @ weights), np.full(3, c_out @ weights)
+    mix = grey_out + t[:, None] * (grey_in - grey_out)
+    luma = srgb_to_linear(linear_to_srgb(mix) @ weights)[None]
+    y_in, y_out = (srgb_to_linear(np.array([linear_to_srgb(c) @ weights])) for c in (grey_in, grey_out))
+    got = _luma_coverage(luma, y_in, y_out, grey_in[None], grey_out[None])[0]
+    assert np.allclose(got, (luma[0] - y_out) / (y_in - y_out), atol=1e-9)
+
+
+def test_luma_coverage_keeps_the_linear_reading_where_the_luma_does_not_rise_with_the_coverage():
+    """A yellow-green face before a grey floor (holdout 6060 s4/1): its luma steps 6 levels of 255, green up and
+    blue down, and dips before it rises, so no coverage answers a luma uniquely (inverted anyway, its sides went
+    0.3 and 1.0 px inward). Its samples keep the linear reading, as do those beyond either end of a step that
+    is inverted (JPEG's ringing)."""
+    from depth.measure import _luma_coverage
+    weights = np.array([0.299, 0.587, 0.114])
+    t = np.linspace(-0.2, 1.2, 29)
+    for face8, floor8, inverted in (((192, 224, 94), (188, 199, 181), False), ((200, 40, 40), (200, 200, 200), True)):
+        c_in, c_out = srgb_to_linear(np.array(face8) / 255.0), srgb_to_linear(np.array(floor8) / 255.0)
+        luma = srgb_to_linear(linear_to_srgb(c_out + np.clip(t, 0, 1)[:, None] * (c_in - c_out)) @ weights)
+        luma = luma + 0.02 * (luma[-1] - luma[0]) * np.sign(t - 0.5) * (np.abs(t - 0.5) > 0.5)  # ringing beyond
+        y_in, y_out = (srgb_to_linear(np.array([linear_to_srgb(c) @ weights])) for c in (c_in, c_out))
+        linear = (luma - y_out) / (y_in - y_out)
+        got = _luma_coverage(luma[None], y_in, y_out, c_in[None], c_out[None])[0]
+        beyond = (linear <= 0.0) | (linear >= 1.0)
+        assert np.array_equal(got[beyond], linear[beyond])
+        if inverted:
+            assert np.allclose(got[~beyond], t[~beyond], atol=1e-6) and not np.allclose(linear[~beyond], t[~beyond],
+                                                                                      atol=0.02)
+        else:
+            assert np.array_equal(got, linear)
 
 
 @pytest.mark.parametrize("left", [60.3, 63.6])
