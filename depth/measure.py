@@ -2389,15 +2389,15 @@ def _luma_coverage(luma, y_in, y_out, c_in, c_out) -> np.ndarray:
         return t
     rows, cols = np.nonzero(inside)
     target, lo, hi = u[rows, cols], np.zeros(len(rows)), np.ones(len(rows))
-    base, step, scale = c_out[rows], d[rows], span[rows, 0]
+    base, step, start, scale = c_out[rows], d[rows], f0[rows], span[rows, 0]
     for _ in range(_LUMA_BISECTIONS):
         mid = 0.5 * (lo + hi)
-        below = (_linear_to_srgb(base + mid[:, None] * step) @ _LUMA - f0[rows]) / scale < target
+        below = (_linear_to_srgb(base + mid[:, None] * step) @ _LUMA - start) / scale < target
         lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
     cover = 0.5 * (lo + hi)
     for _ in range(_LUMA_NEWTON_STEPS):
         mix = base + cover[:, None] * step
-        share = (_linear_to_srgb(mix) @ _LUMA - f0[rows]) / scale
+        share = (_linear_to_srgb(mix) @ _LUMA - start) / scale
         slope = (_srgb_slope(mix) * step) @ _LUMA / scale
         cover = np.clip(cover - (share - target) / np.maximum(slope, _LUMA_MIN_SLOPE), lo, hi)
     out = t.copy()
