@@ -328,6 +328,26 @@ def test_bad_arguments(rig):
         estimate_face(rig.rays, meas, cube_size=-1.0)
 
 
+def test_a_side_too_short_to_fit_is_refused_by_name(rig):
+    # a bottom side of two edge points (holdout 6060 s3/4: its refusal said they missed the mirror)
+    meas = rig.measure(rig.cube(0.5, 5.0))
+    short = dataclasses.replace(meas, sides_px=tuple(meas.sides_px[:3]) + (np.asarray(meas.sides_px[3])[:2],))
+    for method in ("ddar", "exact"):
+        est = estimate_face(rig.rays, short, method=method)
+        assert not est
+        assert "the bottom side has 2 edge point(s), need 3" in est.reason
+
+
+def test_a_side_whose_points_miss_the_mirror_is_refused_by_name(rig):
+    meas = rig.measure(rig.cube(0.5, 5.0))
+    off = np.column_stack([np.linspace(2.0, 40.0, 7), np.full(7, 300.0)])  # left of the mirror's image
+    assert not np.isfinite(rig.rays(off)[0]).any()
+    moved = dataclasses.replace(meas, sides_px=(meas.sides_px[0], meas.sides_px[1], off, meas.sides_px[3]))
+    est = estimate_face(rig.rays, moved, method="ddar")
+    assert not est
+    assert "only 0 of the top side's 7 edge points reflect off the mirror" in est.reason
+
+
 def test_shape_prior_recovers_common_size_of_identical_cubes(rig):
     from depth.estimate import estimate_faces_shape_prior
     cubes = [rig.cube(0.35, -30.0, size=0.05), rig.cube(0.6, 5.0, size=0.05), rig.cube(0.85, 25.0, size=0.05)]
