@@ -400,13 +400,15 @@ def _intersect(c1, d1, c2, d2) -> np.ndarray:
 def _face_in_kappa(local: LocalXSlit, rays: RayFunction, sides_px) -> dict:
     """Side lines and corners of the face in κ coordinates of the local XSlit."""
     lines, res, counts, all_px, all_k = [], [], [], [], []
-    for name, pts in zip(("left", "right", "top", "bottom"), sides_px):
+    for i, pts in enumerate(sides_px):
         pts = np.asarray(pts, dtype=np.float64).reshape(-1, 2)
-        if len(pts) < 3:
-            raise DepthError(f"sides_px: the {name} side has {len(pts)} edge point(s), need 3")
         p, d = rays(pts)
         ok = np.all(np.isfinite(p), axis=1)
         if ok.sum() < 3:
+            from depth.measure import SIDE_NAMES  # noqa: PLC0415 (only to name the side; not on the fit's path)
+            name = SIDE_NAMES[i]
+            if len(pts) < 3:
+                raise DepthError(f"sides_px: the {name} side has {len(pts)} edge point(s), need 3")
             raise DepthError(f"sides_px: only {int(ok.sum())} of the {name} side's {len(pts)} edge points reflect "
                              "off the mirror, need 3")
         k = local.xslit.to_kappa(local.plane_uv(p[ok], d[ok]))
