@@ -132,9 +132,9 @@ def _mask_of(pixels: np.ndarray, shape: tuple) -> np.ndarray:
 
 
 def _bare(meas: FaceMeasurement) -> FaceMeasurement:
-    """The measurement without its blob mask: what a worker process sends back (the image-sized
-    mask is the parent's already)."""
-    return replace(meas, blob_mask=None)
+    """The measurement without its blob mask and image: what a worker process sends back (both are
+    image-sized, and the parent's already)."""
+    return replace(meas, blob_mask=None, image=None)
 
 
 DESPECKLE_PX = 5
@@ -177,7 +177,7 @@ def _measurement(img, blob_mask, outline, face_px, channels, compressed):
                            back_sides_px=tuple(backs), side_gaps_px=tuple(gaps), strip_px=tuple(outline.strip_px),
                            edge_bias_px=EDGE_BIAS_PX_COMPRESSED if compressed
                            else EDGE_BIAS_PX_BLURRED if outline.blurred else EDGE_BIAS_PX,
-                           no_side_face_gap_px=no_gap, blob_mask=blob_mask)
+                           no_side_face_gap_px=no_gap, blob_mask=blob_mask, image=img)
 
 
 SHADOW_MISFIT_PX = 0.45
@@ -760,7 +760,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
             return expected_work(outcome[3], method), outcome[3]
 
         def first_estimate(i, meas):
-            return estimate_face(rays, replace(meas, blob_mask=detections[i].mask), method=method,
+            return estimate_face(rays, replace(meas, blob_mask=detections[i].mask, image=img), method=method,
                                  cube_size=cube_size, up=up)
         outcomes, early = fork_chain(lambda i: outlined(detections[i]), first_estimate, len(detections), plan,
                                      workers, cost=[int(det.mask.sum()) for det in detections])
@@ -797,7 +797,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         if det.achromatic:
             achromatic.add(len(measured))
         sources.append((det, face_mask, channels))
-        measured.append((replace(meas, blob_mask=det.mask), bbox, outline))
+        measured.append((replace(meas, blob_mask=det.mask, image=img), bbox, outline))
     if blurred:
         if domain == "auto":  # the image's blurred faces pooled
             domain = pooled_blur_domain(evidences)  # (`blur_domain_verdict`, each face's part from its worker)
@@ -813,7 +813,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
             redone = fork_map(encoded, len(blurred), workers, cost=[int(f.sum()) for _, _, f, _ in blurred])
             for (k, det, _, _), again in zip(blurred, redone):
                 if again is not None:
-                    measured[k] = (replace(again[0], blob_mask=det.mask), measured[k][1], again[1])
+                    measured[k] = (replace(again[0], blob_mask=det.mask, image=img), measured[k][1], again[1])
 
     def verdict(k, est, meas) -> str | None:
         """Why the estimate of face k is refused, or None."""
@@ -871,7 +871,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                 if isinstance(out, str):
                     continue
                 _, other, _, other_meas = out
-                other_meas = replace(other_meas, blob_mask=grown.mask)
+                other_meas = replace(other_meas, blob_mask=grown.mask, image=img)
                 other_est = estimate_face(rays, other_meas, method=method, cube_size=cube_size, up=up)
                 if verdict(k, other_est, other_meas) is None:
                     est, outline, reason, bbox = other_est, other, None, grown.bbox
