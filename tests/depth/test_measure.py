@@ -2000,6 +2000,42 @@ def test_a_jpeg_blob_boundary_scattering_beyond_the_face_here_and_there_is_no_si
     assert np.all(sil.gaps_px[:2] < 0.75), sil.gaps_px
 
 
+MITSUBA_PURPLE_JPEG = Path(__file__).resolve().parents[1] / "data" / "mitsuba_purple_4040_s4_0_jpeg.png"
+"""An 80×192 crop at (856, 448), on the 8×8 block grid, of a Mitsuba 3 render through OpenCV's JPEG coder at
+quality 90 (`python -m bench.holdout 4040 --jpeg`, scene 4, cube 0): a purple cube facing the mirror axis, its
+front face 30 × 131 px and no side face showing."""
+
+
+def test_a_jpeg_face_cut_by_ringing_between_parts_of_one_level_is_one_face():
+    """JPEG ringing along a block boundary draws a line of gradient 12.5 px into the face; the blob's parts on
+    either side of it, 13.5 and 17.5 px wide, differ in level by 0.010 (linear RGB), under half the weakest
+    face boundary looked for. In a compressed image such a cut is no face boundary, and the two parts are one
+    face: the detection is usable (refused as two face-sized parts before the seventy-ninth session)."""
+    from depth.reconstruct import despeckled
+
+    image = _bench_crop(MITSUBA_PURPLE_JPEG)
+    dets = detect_cubes(despeckled(image), np.ones(image.shape[:2], dtype=bool), compressed=True)
+    assert len(dets) == 1
+    assert dets[0].usable, dets[0].reason
+    u0, v0, u1, v1 = dets[0].bbox
+    assert u1 - u0 >= 29 and v1 - v0 >= 130  # the whole face, not one part of it
+    assert np.count_nonzero(dets[0].front_face_mask) > 0.9 * np.count_nonzero(dets[0].mask)
+
+
+def test_touching_cubes_of_the_same_colour_are_refused_in_a_compressed_image_too():
+    """`test_touching_cubes_of_the_same_colour_are_refused`, read as a compressed image: the two faces differ
+    in level, so the cut between them is a face boundary, and the two face-sized parts are still refused."""
+    a = FakeCube((80.3, 40.2), (102.6, 40.8), (103.1, 150.4), (80.8, 150.0), side=None,
+                 albedo=COLOURS["green"], front_shade=0.7)
+    b = FakeCube((102.6, 40.8), (125.9, 41.5), (126.4, 151.2), (103.1, 150.4), side=None,
+                 albedo=COLOURS["green"], front_shade=0.55)
+    image, mirror = make_image((200, 220), [a, b])
+    detections = detect_cubes(image, mirror, compressed=True)
+    assert len(detections) == 1
+    assert not detections[0].usable
+    assert "same colour" in detections[0].reason
+
+
 MITSUBA_WHITE = Path(__file__).resolve().parents[1] / "data" / "mitsuba_white_s3_0.png"
 """A 52×138 crop of a Mitsuba 3 render (16 spp, Gaussian pixel filter; the holdout `python -m bench.holdout
 8080`, scene 3, cube 0): a white cube turned 7° on a grey floor under a sky and a sun, its front face 19 px
