@@ -1339,7 +1339,7 @@ def _split_faces(linear: np.ndarray, value: np.ndarray, chroma: np.ndarray, blob
             order = np.argsort(-widths)
             k = int(order[0])
             # In a compressed image a cut between parts of one level is no face boundary (`_stepped_span`):
-            # the parts that face two of them are one
+            # parts joined across such cuts count as one part
             runs = _level_runs(linear, blob, x, edges, min_contrast) if stepped_cuts else [(j, j) for j in
                                                                                           range(len(widths))]
             run_widths = np.sort([edges[b + 1] - edges[a] for a, b in runs])[::-1]
