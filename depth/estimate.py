@@ -737,13 +737,17 @@ def expected_work(meas: FaceMeasurement, method: str = "exact") -> float:
 _SQUARE3 = np.ones((3, 3), np.uint8)
 
 
+def _deep(mask: np.ndarray) -> np.ndarray:
+    """The pixels of a 2-D bool `mask` more than a pixel deep in it: its erosion by a 3×3 square, nothing
+    beyond the array counted in (scipy.ndimage's `binary_erosion`, in OpenCV: the process that estimates
+    the faces then imports no scipy.ndimage)."""
+    return cv2.erode(np.ascontiguousarray(mask).view(np.uint8), _SQUARE3, borderType=cv2.BORDER_CONSTANT,
+                     borderValue=0).view(bool)
+
+
 def _deep_pixels(mask: np.ndarray) -> int:
-    """How many pixels of a 2-D bool `mask` lie more than a pixel deep in it: its erosion by a 3×3 square,
-    nothing beyond the array counted in (scipy.ndimage's `binary_erosion`, in OpenCV: the process that
-    estimates the faces then imports no scipy.ndimage)."""
-    eroded = cv2.erode(np.ascontiguousarray(mask).view(np.uint8), _SQUARE3, borderType=cv2.BORDER_CONSTANT,
-                       borderValue=0)
-    return int(np.count_nonzero(eroded))
+    """How many pixels of a 2-D bool `mask` lie more than a pixel deep in it (`_deep`)."""
+    return int(np.count_nonzero(_deep(mask)))
 
 
 def _shows_apart(image: np.ndarray, face: np.ndarray, around: np.ndarray) -> bool:
@@ -798,8 +802,7 @@ def _silhouette_disagreement(rays: RayFunction, blob_mask: np.ndarray, blob_only
             beyond = grown(hit, 4) & ~grown(hit, 1) & ~shown
             excused = np.zeros(yy.shape, dtype=bool)
             for f in range(6 if crop is not None else 0):
-                deep = cv2.erode((face == f).view(np.uint8), _SQUARE3, borderType=cv2.BORDER_CONSTANT,
-                                 borderValue=0).view(bool)
+                deep = _deep(face == f)
                 n = np.count_nonzero(deep)
                 if n and np.count_nonzero(deep & shown) <= ABSENT_FACE_SHARE * n \
                         and _shows_apart(crop, deep, beyond & grown(face == f, 5)):

@@ -1340,13 +1340,13 @@ def _split_faces(linear: np.ndarray, value: np.ndarray, chroma: np.ndarray, blob
             k = int(order[0])
             # In a compressed image a cut between parts of one level is no face boundary (`_stepped_span`):
             # parts joined across such cuts count as one part
-            runs = _level_runs(linear, blob, x, edges, min_contrast) if stepped_cuts else [(j, j) for j in
-                                                                                          range(len(widths))]
-            run_widths = np.sort([edges[b + 1] - edges[a] for a, b in runs])[::-1]
+            same = (_cuts_within_level(linear, blob, x, edges, min_contrast) if stepped_cuts
+                    else [False] * (len(widths) - 1))
+            run_widths = np.sort([edges[b + 1] - edges[a] for a, b in _level_runs(same)])[::-1]
             if len(run_widths) > 1 and run_widths[1] >= 0.7 * run_widths[0] and run_widths[1] >= 6:
                 reason = ("two face-sized parts in one blob: touching cubes of the same colour, or a shadow "
                           "edge across a face")
-            lo, hi = _stepped_span(linear, blob, x, edges, k, min_contrast) if stepped_cuts else (k, k)
+            lo, hi = _stepped_span(same, k)
             region = blob & (x > edges[lo]) & (x < edges[hi + 1])
     reason = reason or _neck_reason(blob)
     front, _ = _split_by_brightness(value, chroma, region, min_contrast)
@@ -1357,20 +1357,19 @@ def _split_faces(linear: np.ndarray, value: np.ndarray, chroma: np.ndarray, blob
     return front, sides, reason
 
 
-def _stepped_span(linear: np.ndarray, blob: np.ndarray, x: np.ndarray, edges: np.ndarray, k: int,
-                  min_contrast: float) -> tuple[int, int]:
-    """The parts lo..hi (between `edges`, in sheared columns x) around part k that no face boundary
-    separates from it.
+def _stepped_span(same: list, k: int) -> tuple[int, int]:
+    """The parts lo..hi around part k that no face boundary separates from it, given per cut between the
+    parts whether it lies between parts of one level (`_cuts_within_level`; all False: each part alone).
 
-    Used for compressed images only (`detect_cubes`' `compressed`; elsewhere such a line is a fold between
-    faces lit alike). A cut is a face boundary only where the parts on either side of it differ in level
-    (the median linear RGB of their pixels off the blob's outline) by at least half `min_contrast`, the weakest
-    boundary `_vertical_edge_lines` looks for (a boundary of contrast c puts c/2 in each column beside
-    it). A line of gradient between equal levels is a bump, not a step: JPEG ringing a few pixels
-    inside a face, along a block boundary (reconstruct bench, JPEG s15/4: a cut 6.5 px inside a 29 px
-    face, its two parts 0.013 apart; the face was outlined 6.7 px narrow and came out 33 % off).
+    Cuts are read so in compressed images only (`detect_cubes`' `compressed`; elsewhere such a line is a
+    fold between faces lit alike, and `_split_faces` passes all False). A cut is a face boundary only where
+    the parts on either side of it differ in level (the median linear RGB of their pixels off the blob's
+    outline) by at least half `min_contrast`, the weakest boundary `_vertical_edge_lines` looks for (a boundary
+    of contrast c puts c/2 in each column beside it). A line of gradient between equal levels is a bump, not a
+    step: JPEG ringing a few pixels inside a face, along a block boundary (reconstruct bench, JPEG s15/4: a cut
+    6.5 px inside a 29 px face, its two parts 0.013 apart; the face was outlined 6.7 px narrow and came out 33 %
+    off).
     """
-    same = _cuts_within_level(linear, blob, x, edges, min_contrast)
     lo, hi = k, k
     while lo > 0 and same[lo - 1]:
         lo -= 1
@@ -1394,16 +1393,15 @@ def _cuts_within_level(linear: np.ndarray, blob: np.ndarray, x: np.ndarray, edge
             and not _distinct_levels(levels[j], levels[j + 1], min_contrast) for j in range(len(levels) - 1)]
 
 
-def _level_runs(linear: np.ndarray, blob: np.ndarray, x: np.ndarray, edges: np.ndarray,
-                min_contrast: float) -> list:
+def _level_runs(same: list) -> list:
     """The runs (first, last) of consecutive parts of a blob that no cut between parts of distinct levels
-    separates (`_cuts_within_level`)."""
+    separates, given per cut whether it lies between parts of one level (`_cuts_within_level`)."""
     runs, start = [], 0
-    for j, one in enumerate(_cuts_within_level(linear, blob, x, edges, min_contrast)):
+    for j, one in enumerate(same):
         if not one:
             runs.append((start, j))
             start = j + 1
-    return runs + [(start, len(edges) - 2)]
+    return runs + [(start, len(same))]
 
 
 def _distinct_levels(a: np.ndarray, b: np.ndarray, min_contrast: float) -> bool:

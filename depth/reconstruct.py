@@ -137,6 +137,11 @@ def _bare(meas: FaceMeasurement) -> FaceMeasurement:
     return replace(meas, blob_mask=None, image=None)
 
 
+def _attached(meas: FaceMeasurement, blob_mask: np.ndarray, img: np.ndarray) -> FaceMeasurement:
+    """The measurement with the blob mask and image `_bare` takes off (either may be another blob's)."""
+    return replace(meas, blob_mask=blob_mask, image=img)
+
+
 DESPECKLE_PX = 5
 """Median window for detecting cubes in JPEG images (their faces are then outlined on the image
 itself). On the reconstruct bench's JPEG images it brought the measured front-face corners from
@@ -760,7 +765,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
             return expected_work(outcome[3], method), outcome[3]
 
         def first_estimate(i, meas):
-            return estimate_face(rays, replace(meas, blob_mask=detections[i].mask, image=img), method=method,
+            return estimate_face(rays, _attached(meas, detections[i].mask, img), method=method,
                                  cube_size=cube_size, up=up)
         outcomes, early = fork_chain(lambda i: outlined(detections[i]), first_estimate, len(detections), plan,
                                      workers, cost=[int(det.mask.sum()) for det in detections])
@@ -797,7 +802,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         if det.achromatic:
             achromatic.add(len(measured))
         sources.append((det, face_mask, channels))
-        measured.append((replace(meas, blob_mask=det.mask, image=img), bbox, outline))
+        measured.append((_attached(meas, det.mask, img), bbox, outline))
     if blurred:
         if domain == "auto":  # the image's blurred faces pooled
             domain = pooled_blur_domain(evidences)  # (`blur_domain_verdict`, each face's part from its worker)
@@ -813,7 +818,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
             redone = fork_map(encoded, len(blurred), workers, cost=[int(f.sum()) for _, _, f, _ in blurred])
             for (k, det, _, _), again in zip(blurred, redone):
                 if again is not None:
-                    measured[k] = (replace(again[0], blob_mask=det.mask, image=img), measured[k][1], again[1])
+                    measured[k] = (_attached(again[0], det.mask, img), measured[k][1], again[1])
 
     def verdict(k, est, meas) -> str | None:
         """Why the estimate of face k is refused, or None."""
@@ -871,7 +876,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                 if isinstance(out, str):
                     continue
                 _, other, _, other_meas = out
-                other_meas = replace(other_meas, blob_mask=grown.mask, image=img)
+                other_meas = _attached(other_meas, grown.mask, img)
                 other_est = estimate_face(rays, other_meas, method=method, cube_size=cube_size, up=up)
                 if verdict(k, other_est, other_meas) is None:
                     est, outline, reason, bbox = other_est, other, None, grown.bbox

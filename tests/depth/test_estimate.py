@@ -1111,7 +1111,8 @@ def _cube_missing_its_top_face(rig, distance, azimuth, height, yaw, top_level):
     image = np.where(blob, 0.3, np.where(face == top, top_level, 0.5))[..., None].repeat(3, axis=2)
     image = image + np.random.default_rng(0).normal(0.0, 0.01, image.shape)
     gaps = (meas.side_gaps_px[0], meas.side_gaps_px[1], 0.0, 0.0)
-    return cube, dataclasses.replace(meas, side_gaps_px=gaps, blob_mask=blob, image=image), np.count_nonzero(face == top)
+    meas = dataclasses.replace(meas, side_gaps_px=gaps, blob_mask=blob, image=image)
+    return cube, meas, np.count_nonzero(face == top)
 
 
 @pytest.mark.parametrize("distance, azimuth, height, yaw", [(0.35, -20.0, -0.12, 25.0), (0.3, -10.0, -0.12, 15.0)])

@@ -2694,10 +2694,10 @@ def test_a_faint_face_boundary_among_columns_of_ringing_and_flat_blocks_is_found
 
 @pytest.mark.parametrize("bump", [0.0, 0.01])
 def test_cuts_between_equal_levels_are_no_face_boundaries(bump):
-    """`_stepped_span` over three parts of a blob: a face (level A), a part the same within half the minimum
-    face contrast (A + bump), and a side face 0.1 darker. The front face's span takes in the part of its own
-    level, and stops at the side face."""
-    from depth.measure import _stepped_span
+    """`_stepped_span` over three parts of a blob (its cuts read by `_cuts_within_level`): a face (level A), a
+    part the same within half the minimum face contrast (A + bump), and a side face 0.1 darker. The front
+    face's span takes in the part of its own level, and stops at the side face."""
+    from depth.measure import _cuts_within_level, _stepped_span
     h, w = 40, 30
     blob = np.zeros((h, w), dtype=bool)
     blob[2:-2, 2:-2] = True
@@ -2707,10 +2707,13 @@ def test_cuts_between_equal_levels_are_no_face_boundaries(bump):
     linear[:, 21:] -= 0.1
     x = np.tile(np.arange(w, dtype=float), (h, 1))
     edges = np.array([1.0, 13.5, 20.5, 28.0])
-    assert _stepped_span(linear, blob, x, edges, 0, 0.03) == (0, 1)
-    assert _stepped_span(linear, blob, x, edges, 1, 0.03) == (0, 1)
+
+    def span(k):
+        return _stepped_span(_cuts_within_level(linear, blob, x, edges, 0.03), k)
+    assert span(0) == (0, 1)
+    assert span(1) == (0, 1)
     linear[:, 14:21] += (0.0, 0.0, 0.02)  # now a step of 0.02 or 0.03: a boundary
-    assert _stepped_span(linear, blob, x, edges, 0, 0.03) == (0, 0)
+    assert span(0) == (0, 0)
 
 
 @settings(max_examples=40, deadline=None)
