@@ -331,7 +331,11 @@ class CubeEstimate:
     center, front_face_center : (3,) world metres; size : edge length; depth : distance from the
     mirror axis to `center` (filled by the caller, who knows the mirror); normal : (3,) the front
     face's outward normal (toward the mirror); std : first-order σ of 'z', 'size', 'center' (and for
-    `shape_prior`, 'scale': the factor those were scaled by where the cubes disagree).
+    `shape_prior`, 'scale': the factor those were scaled by where the cubes disagree). side_misfits
+    (``exact`` only): per front side (left, right, top, bottom), its edge points' (count, rms misfit in px,
+    Durbin–Watson statistic of their misfits in their order along the side: Σ(r_i+1 − r_i)² / Σ r_i², about
+    2 for misfits that are noise from point to point, near 0 for a side the model misses smoothly along its
+    length; NaN under 3 points or with no misfit at all).
     """
 
     method: str
@@ -344,6 +348,7 @@ class CubeEstimate:
     std: dict
     xslit: dict = field(default_factory=dict)
     rms_residual: float = float("nan")
+    side_misfits: tuple = ()
 
     def __bool__(self) -> bool:
         return True
@@ -692,6 +697,15 @@ _TOPS = {False: (0, 1, 5, 4), True: (2, 3, 7, 6)}  # the top/bottom faces at a <
 def _rms(r: np.ndarray) -> float:
     """Root mean square of residuals."""
     return float(np.sqrt(np.mean(r ** 2)))
+
+
+def _side_misfit(r: np.ndarray) -> tuple:
+    """(count, rms, Durbin–Watson statistic) of one side's edge-point misfits `r` in their order along it
+    (`CubeEstimate.side_misfits`)."""
+    n, ss = len(r), float(np.sum(r ** 2))
+    if n < 3 or ss <= 0.0:
+        return n, (_rms(r) if n else float("nan")), float("nan")
+    return n, float(np.sqrt(ss / n)), float(np.sum(np.diff(r) ** 2) / ss)
 
 
 def _side_gaps(meas: FaceMeasurement) -> np.ndarray:
@@ -1459,6 +1473,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     normal = _square_axes(rot, base)[2]
     r = resid(x_best)[:len(sid)]  # the edge points' misfit
     rms = _rms(r)
+    side_misfits = tuple(_side_misfit(r[sid == k]) for k in range(4))
     if rms > MAX_EDGE_MISFIT_PX:
         return FailedEstimate("exact", f"the edges do not fit one square face (rms misfit {rms:.2f} px)")
 
@@ -1557,7 +1572,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     def estimate(std):
         return CubeEstimate(method="exact", center=f0[:3], size=float(s), z=float(f0[4]), front_face_center=c,
                             normal=normal, aspect_ratio=start.aspect_ratio, std=std,
-                            xslit=start.xslit, rms_residual=rms)
+                            xslit=start.xslit, rms_residual=rms, side_misfits=side_misfits)
 
     @np.errstate(over="ignore", invalid="ignore", divide="ignore")  # as `_exact`'s, when called after it
     def completed():
