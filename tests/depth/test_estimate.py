@@ -503,6 +503,51 @@ def test_exact_recovers_a_turned_cube_whose_side_face_merges_with_the_front(rig,
     assert not naive or centre_error(rig, naive, cube) > 0.02
 
 
+@pytest.mark.parametrize("noise_px", [0.0, 0.1])
+def test_a_side_face_as_bright_as_the_background_is_read_beyond_the_front_face(rig, noise_px):
+    """A grey cube on a grey floor, turned 17°: its side face as bright as the floor behind it, so the blob
+    ends at the front face's edge and the silhouette shows no side face on either side. Read as the outer
+    contour, that side holds the turn so that no side face shows there, against the top and bottom sides'
+    slopes: 24 % off, its misfit 0.32 px on this face of 61 × 263 px. Read as the front face's own edge, a side
+    face free to show beyond it, the cube comes back exactly from exact edges, and within its σ from edges
+    0.1 px noisy. The same face with its side face merged (as bright as the front face: the outline is the
+    contour, its top and bottom sides running on over the side face) is still read as the contour."""
+    big = type(rig)(resolution=(1600, 1200), focal=3500.0)
+    cube = big.cube(0.35, 5.0, yaw_deg=17.0, size=0.05, height=-0.05)
+    true = big.measure(cube, gaps=True, noise_px=noise_px, seed=3)
+    assert max(true.side_gaps_px) > 10.0 and sum(b is not None for b in true.back_sides_px) == 1
+    unseen = dataclasses.replace(true, side_gaps_px=(0.0, 0.0), back_sides_px=(None, None))
+    est = estimate_face(big.rays, unseen, method="exact", up=big.mirror.axis)
+    assert est
+    if noise_px:
+        depth = float(big.mirror.distance_to_axis(est.center[None])[0])
+        assert abs(depth - big.depth(cube)) < 3.0 * est.std["z"] and centre_error(big, est, cube) < 0.02
+    else:
+        assert centre_error(big, est, cube) < 1e-6
+    merged = big.measure(cube, merged=True, noise_px=noise_px, seed=3)
+    assert merged.side_gaps_px == (0.0, 0.0) and merged.back_sides_px == (None, None)
+    est = estimate_face(big.rays, merged, method="exact", up=big.mirror.axis)
+    assert est and centre_error(big, est, cube) < (0.02 if noise_px else 1e-4)
+
+
+@pytest.mark.parametrize("yaw", [0.0, 20.0, -40.0])
+def test_a_front_face_is_the_most_frontal_face_of_its_cube(rig, yaw):
+    """`_most_frontal` against the cube's own geometry: the estimate of a cube turned up to 40° from facing the
+    axis has its front face nearer to facing its rays than either side face; the same estimate turned a quarter
+    turn about the vertical, its front face now a side face of the cube (at least 50° from facing), does not."""
+    from scipy.spatial.transform import Rotation
+
+    from depth.estimate import _most_frontal
+
+    cube = rig.cube(0.5, 10.0, yaw_deg=yaw)
+    meas = rig.measure(cube)
+    est = estimate_face(rig.rays, meas, method="exact", up=rig.mirror.axis)
+    assert est and _most_frontal(rig.rays, meas, est, rig.mirror.axis)
+    quarter = Rotation.from_rotvec(np.deg2rad(90.0) * np.asarray(rig.mirror.axis, dtype=float)).as_matrix()
+    for turn in (quarter, quarter.T):
+        assert not _most_frontal(rig.rays, meas, dataclasses.replace(est, normal=turn @ est.normal), rig.mirror.axis)
+
+
 @pytest.mark.parametrize("seed, noise_px", [(1, 0.05), (3, 0.05), (3, 0.1)])
 def test_the_turn_profile_does_not_replace_a_merged_fit_by_a_worse_one(rig, seed, noise_px):
     """A face of 61 × 263 px turned 17°, its side face merged into the outline, the edges noisy: the fit from
