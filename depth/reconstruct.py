@@ -204,6 +204,16 @@ read as a cube 0.93 m away, its face turned to its rays (4.5 %: the top face rea
 read as the front; invented once that image's blur was read as linear, `BLUR_EVIDENCE_MARGIN`)."""
 
 
+SHADOW_MISFIT_SCATTER = 1.1
+"""The edge misfit up to which a face found without colour is not taken for a shadow is at least this many times
+its edges' own scatter (`FaceMeasurement.edge_noise_px`, each side's own line or curve fitted alone): no square
+fits edge points better than they scatter from point to point. A light grey face 0.04 of sRGB from the floor
+behind it, a path tracer's noise on it, has its sides read 0.44–0.47 px from their own fits (holdout 3030 s7/4,
+PNG and all grey), and was refused at 0.47–0.60 px misfit, read 0.4–3.8 % off. Floor shadows misfit more than
+their scatter, or miss smoothly along both sides (`_curved_sides`): of the 823 collected readings (see
+`SHADOW_CURVED_SIDE_PX`), those of shadows under 1.1 times their scatter and over `SHADOW_MISFIT_PX` bow on both
+sides but one (3030 all grey JPEG s3, 0.99 times), which the later tests refuse."""
+
 SHADOW_CURVED_SIDE_PX = 0.3
 """Rms misfit (px) over which each of the left and right sides of a face found without colour must miss
 `exact`'s upright face, smoothly (`SHADOW_CURVED_DW`), for `_shadow_reason` to take it for a shadow on the
@@ -322,20 +332,20 @@ def _shadow_reason(rays, meas, est, cube_size, up, img=None, sky=None) -> str | 
 
     A grey, white or black cube and a shadow on a grey floor look alike: both are a region of
     another brightness than the background around it. A cube's shadow, though, is a hexagon, not the
-    image of a square face: where `exact`'s edge misfit exceeds `SHADOW_MISFIT_PX` (the other methods
-    are checked with `exact`), the region is refused. A shadow that happens to be a quadrilateral (a
-    sun along a face) is not told from a grey cube. Nor is a fragment of a larger object whose edges
-    happen to fit a square: where over `BLOB_OUTSIDE_SHARE` of the blob lies outside the cube read,
-    more than a pixel deep, the cube does not explain the blob and is refused. Given the image (`img`) and
-    the camera's up (`sky`), a quadrilateral read with a merged top face of its front face's brightness is
-    refused as one flat region (`_flat_region_reason`). One whose left and right sides both miss the upright face
-    smoothly along their length is a shadow on the floor (`_curved_sides`)."""
+    image of a square face: where `exact`'s edge misfit exceeds `SHADOW_MISFIT_PX` and `SHADOW_MISFIT_SCATTER`
+    times the edges' own scatter (the other methods are checked with `exact`), the region is refused. A shadow
+    that happens to be a quadrilateral (a sun along a face) is not told from a grey cube by that. Nor is a
+    fragment of a larger object whose edges happen to fit a square: where over `BLOB_OUTSIDE_SHARE` of the
+    blob lies outside the cube read, more than a pixel deep, the cube does not explain the blob and is refused.
+    Given the image (`img`) and the camera's up (`sky`), a quadrilateral read with a merged top face of its
+    front face's brightness is refused as one flat region (`_flat_region_reason`). One whose left and right
+    sides both miss the upright face smoothly along their length is a shadow on the floor (`_curved_sides`)."""
     check = est if est.method == "exact" else estimate_face(rays, meas, method="exact", cube_size=cube_size, up=up)
     if not check:
         return f"no colour and no square face: {check.reason} (a shadow?)"
-    if check.rms_residual > SHADOW_MISFIT_PX:
-        return (f"{SHADOW_MISFIT_REASON} (edge misfit {check.rms_residual:.2f} px > "
-                f"{SHADOW_MISFIT_PX} px): a shadow?")
+    limit = max(SHADOW_MISFIT_PX, SHADOW_MISFIT_SCATTER * meas.edge_noise_px)
+    if check.rms_residual > limit:
+        return f"{SHADOW_MISFIT_REASON} (edge misfit {check.rms_residual:.2f} px > {limit:.2f} px): a shadow?"
     if meas.blob_mask is not None:
         n_blob = int(np.count_nonzero(meas.blob_mask))
         outside = _silhouette_disagreement(rays, meas.blob_mask, blob_only=True)(_cube(check, up))
