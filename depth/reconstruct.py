@@ -186,9 +186,10 @@ def _measurement(img, blob_mask, outline, face_px, channels, compressed):
 
 
 SHADOW_MISFIT_PX = 0.45
-"""`exact`'s edge misfit (rms px) above which a face found without colour is taken for a shadow: the
-outlines of cube shadows on a floor fit a square face to 0.54–0.80 px (lighting bench, floor case),
-those of grey, white and black cubes to 0.03–0.32 px (its grey case)."""
+"""`exact`'s edge misfit (rms px) above which a face found without colour is taken for a shadow (where it is over
+`SHADOW_MISFIT_SCATTER` times its edges' own scatter too): the outlines of cube shadows on a floor fit a square
+face to 0.54–0.80 px (lighting bench, floor case), those of grey, white and black cubes to 0.03–0.32 px (its
+grey case)."""
 
 
 BLOB_OUTSIDE_SHARE = 0.025
