@@ -1570,11 +1570,9 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         return std
 
     def covering_mixture(std, other, share):
-        """Each σ of `std` widened as a mixture of this reading (1 − share) and the one at pose `other`
-        (share) would be: its variance by share·(1 − share) times their difference squared."""
-        spread = np.sqrt(share * (1.0 - share)) * (derived(other) - f0)
-        return {"z": float(np.hypot(std["z"], spread[4])), "size": float(np.hypot(std["size"], spread[3])),
-                "center": float(np.sqrt(std["center"] ** 2 + np.sum(spread[:3] ** 2)))}
+        """`_mixture_std` of this reading and the one at pose `other` (share)."""
+        diff = derived(other) - f0
+        return _mixture_std(std, diff[:3], diff[3], diff[4], share)
 
     def estimate(std):
         return CubeEstimate(method="exact", center=f0[:3], size=float(s), z=float(f0[4]), front_face_center=c,
@@ -1731,7 +1729,9 @@ def _background_sides(rays: RayFunction, meas: FaceMeasurement, start: CubeEstim
     gaps[no_gap] = np.nan
     alt = _exact(rays, replace(meas, side_gaps_px=tuple(gaps)), start, local, cube_size, up, defer=True)
     if not isinstance(alt, tuple) or (est is not None and alt[0].rms_residual > BACKGROUND_SIDE_GAIN
-                                      * est.rms_residual) or not _most_frontal(rays, meas, alt[0], up):
+                                      * est.rms_residual):
+        return reading
+    if not _most_frontal(rays, meas, alt[0], _vertical(local, up)):
         return reading
     if est is None:
         return alt
@@ -1741,16 +1741,16 @@ def _background_sides(rays: RayFunction, meas: FaceMeasurement, start: CubeEstim
     return alt[0], lambda: _covering(alt[1](), est, float(odds / (1.0 + odds)))
 
 
-def _most_frontal(rays: RayFunction, meas: FaceMeasurement, est: CubeEstimate, up) -> bool:
+def _most_frontal(rays: RayFunction, meas: FaceMeasurement, est: CubeEstimate, vertical: np.ndarray) -> bool:
     """Whether `est`'s front face is its cube's face nearest to facing the rays that see it: over the face's
     pixels (every 200th), the mean cosine between the reversed ray and the front face's normal exceeds that of
-    each side face (the faces across `up`). Holdout 3030 JPEG s5/1: a grey cube turned −22°, its light side face
-    found as a blob and its front face, 9–11 of 255 darker than the floor beside it, left out; read with a side
-    face beyond its edge, the side face came out as the front face of a cube turned to the bound, 55° from its
-    rays (cosine 0.58), its side face 36° (0.81), that side face being the true front face: 50 % off."""
+    each side face (the faces across the scene's `vertical`, as `_vertical` gives it). Holdout 3030 JPEG s5/1: a
+    grey cube turned −22°, its light side face found as a blob and its front face, 9–11 of 255 darker than the
+    floor beside it, left out; read with a side face beyond its edge, the side face came out as the front face of
+    a cube turned to the bound, 55° from its rays (cosine 0.58), its side face 36° (0.81), that side face being
+    the true front face: 50 % off."""
     n = est.normal / np.linalg.norm(est.normal)
-    u = np.asarray(up, dtype=np.float64) if up is not None else np.array([0.0, 1.0, 0.0])
-    across = np.cross(n, u - (u @ n) * n)
+    across = np.cross(n, vertical - (vertical @ n) * n)
     across /= np.linalg.norm(across)
     _, directions = rays(meas.face_px[:: max(len(meas.face_px) // 200, 1)].astype(np.float64))
     directions = directions[np.all(np.isfinite(directions), axis=1)]
@@ -1760,15 +1760,19 @@ def _most_frontal(rays: RayFunction, meas: FaceMeasurement, est: CubeEstimate, u
     return float(np.mean(-(directions @ n))) > abs(float(np.mean(directions @ across)))
 
 
-def _covering(kept: CubeEstimate, other: CubeEstimate, share: float) -> CubeEstimate:
-    """`kept` with each σ widened as a mixture of it (1 − share) and `other` (share) would be: its variance by
-    share·(1 − share) times their difference squared."""
+def _mixture_std(std: dict, d_center: np.ndarray, d_size: float, d_z: float, share: float) -> dict:
+    """Each σ of `std` ('z', 'size', 'center') widened as a mixture of its reading (1 − share) and another
+    (share), off by `d_center` (3,), `d_size` and `d_z`, would be: its variance by share·(1 − share) times their
+    difference squared."""
     w = np.sqrt(share * (1.0 - share))
-    dz, ds = w * (other.z - kept.z), w * (other.size - kept.size)
-    dc = w * np.linalg.norm(other.center - kept.center)
-    std = dict(kept.std, z=float(np.hypot(kept.std["z"], dz)), size=float(np.hypot(kept.std["size"], ds)),
-               center=float(np.hypot(kept.std["center"], dc)))
-    return replace(kept, std=std)
+    return dict(std, z=float(np.hypot(std["z"], w * d_z)), size=float(np.hypot(std["size"], w * d_size)),
+                center=float(np.sqrt(std["center"] ** 2 + np.sum((w * np.asarray(d_center)) ** 2))))
+
+
+def _covering(kept: CubeEstimate, other: CubeEstimate, share: float) -> CubeEstimate:
+    """`kept` with its σ covering `other` too (`_mixture_std`, `other`'s share `share`)."""
+    return replace(kept, std=_mixture_std(kept.std, other.center - kept.center, other.size - kept.size,
+                                          other.z - kept.z, share))
 
 
 def _vertical(local: LocalXSlit, up) -> np.ndarray:

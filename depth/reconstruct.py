@@ -237,7 +237,8 @@ SHADOW_CURVED_MIN_POINTS = 8
 """Fewest edge points of a side for its Durbin–Watson statistic to count in `_curved_sides`."""
 
 SHADOW_MISFIT_REASON = "no colour, and its outline is no square face's"
-"""How `_shadow_reason`'s refusal for an edge misfit over `SHADOW_MISFIT_PX` begins."""
+"""How `_shadow_reason`'s refusals for an edge misfit over `SHADOW_MISFIT_PX` and for bowed sides
+(`_curved_sides`) begin: `_faces` reads neither at the fainter steps."""
 
 
 FLAT_FACE_MIN_PX = 8
