@@ -1410,6 +1410,10 @@ def _distinct_levels(a: np.ndarray, b: np.ndarray, min_contrast: float) -> bool:
     return float(np.linalg.norm(a - b)) >= 0.5 * min_contrast
 
 
+NECK_REASON = "touching cubes of the same colour (blob narrows between two parts)"
+"""`CubeDetection.reason` of a blob that narrows to a neck between two bodies (`_neck_reason`)."""
+
+
 def _neck_reason(blob: np.ndarray):
     """A reason when the blob is two bodies joined by a narrow neck (rows or columns)."""
     for axis in (1, 0):
@@ -1424,7 +1428,7 @@ def _neck_reason(blob: np.ndarray):
         if inner.min() < 0.35 * typical:
             j = n // 6 + int(np.argmin(inner))
             if e[:j].max() >= 0.7 * typical and e[j + 1 :].max() >= 0.7 * typical:
-                return "touching cubes of the same colour (blob narrows between two parts)"
+                return NECK_REASON
     return None
 
 

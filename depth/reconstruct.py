@@ -682,8 +682,8 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
     sent while the grey search goes on (`detect_cubes`' `coloured_found`), and the grey ones (`_packed`) come
     from `more`: the coloured faces are outlined and estimated meanwhile."""
     from raytrace.truth import mirror_rays
-    from depth.measure import (FAINT_EDGE_CONTRAST, FAINT_EDGE_READINGS, blur_domain_evidence, convex_filled,
-                               detection_order, extended_to_blob, face_outline, faint_regrowth,
+    from depth.measure import (FAINT_EDGE_CONTRAST, FAINT_EDGE_READINGS, NECK_REASON, blur_domain_evidence,
+                               convex_filled, detection_order, extended_to_blob, face_outline, faint_regrowth,
                                pooled_blur_domain, same_material_faces)
 
     def rays(px):
@@ -741,9 +741,12 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         a background of nearly its brightness may be found as its darker faces alone, which no face
         outline explains: its blob grown across faint edges is read then. (The detection found is not
         handed back: its full-image masks, pickled from the worker processes, came to 47 MB for a
-        2048×1536 image's 5 cubes.)"""
+        2048×1536 image's 5 cubes.) A detection refused for its neck alone (`NECK_REASON`) is grown so too: a
+        grey side face found alone, its strip broken by the path tracer's noise, narrows there (holdout 9090
+        s3/0, a white cube before a floor as bright, its side face a strip 7 px wide)."""
         outcome = outline_detection(det)
-        if isinstance(outcome, str) and det.achromatic and not (det.reason or det.cut_by_mirror_edge or det.occluded):
+        if isinstance(outcome, str) and det.achromatic and not (
+                (det.reason and det.reason != NECK_REASON) or det.cut_by_mirror_edge or det.occluded):
             for grown in regrown(det):
                 again = outline_detection(grown)
                 if not isinstance(again, str):
