@@ -1713,25 +1713,17 @@ def _background_sides(rays: RayFunction, meas: FaceMeasurement, start: CubeEstim
     then ends at the front face's edge, and read as the outer contour the side holds the turn so that no side
     face shows there, against the top and bottom sides' slopes: 17 % off, misfit 0.76 px. Where the contour
     reading misfits the edges by over `BACKGROUND_SIDE_MISFIT` times their own scatter (`edge_noise_px`, and over
-    `UPRIGHT_MISFIT_PX`), or fits no face, or fits them at a pose that shows a side face merged with the front
-    face (as bright as it) wider beside such a side than any the silhouette reads as none (`no_side_face_gap_px`;
-    a small face turned 15°, its side face as bright as the background: fitted to 0.04 px with a merged side
-    face 1.5 px wide, 26 % off at 7.6 σ), those sides are read again as the front face's edges, a side face
-    free to show beyond them. That reading stands where its misfit is under `BACKGROUND_SIDE_GAIN` times the
+    `UPRIGHT_MISFIT_PX`), or fits no face, those sides are read again as the front face's edges, a side face
+    free to show beyond them; that reading stands where its misfit is under `BACKGROUND_SIDE_GAIN` times the
     contour reading's (the same cube: 0.53 %, 0.44 px) and its front face is still the cube's most frontal face
     (`_most_frontal`: a side face found alone, read so, turns the cube until its true front face shows as the
     side face). Its σ then covers the contour reading as a mixture weighted by the odds of their fits
-    (`_covering`). (Where it fits the edges better but not by that share, the contour reading's σ does not cover
-    it: on 8 holdout cubes where it did so, it lay 10–37 % off for 7, whose contour readings were within 0.2–5.7 %;
-    bench/TRIED.md.)"""
+    (`_covering`)."""
     no_gap, _, _ = _gap_readings(meas)
     if not no_gap or any(sp is not None for sp in meas.back_sides_px):
         return reading
     est = reading[0] if isinstance(reading, tuple) else None
-    vertical = _vertical(local, up)
-    if (est is not None and est.rms_residual <= max(BACKGROUND_SIDE_MISFIT * meas.edge_noise_px, UPRIGHT_MISFIT_PX)
-            and max(_side_face_width_px(rays, meas.sides_px[k], est, vertical) for k in no_gap)
-            <= meas.no_side_face_gap_px):
+    if est is not None and est.rms_residual <= max(BACKGROUND_SIDE_MISFIT * meas.edge_noise_px, UPRIGHT_MISFIT_PX):
         return reading
     gaps = _side_gaps(meas)
     gaps[no_gap] = np.nan
@@ -1739,7 +1731,7 @@ def _background_sides(rays: RayFunction, meas: FaceMeasurement, start: CubeEstim
     if not isinstance(alt, tuple) or (est is not None and alt[0].rms_residual > BACKGROUND_SIDE_GAIN
                                       * est.rms_residual):
         return reading
-    if not _most_frontal(rays, meas, alt[0], vertical):
+    if not _most_frontal(rays, meas, alt[0], _vertical(local, up)):
         return reading
     if est is None:
         return alt
