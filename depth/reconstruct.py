@@ -267,6 +267,44 @@ of the camera's up (the world's, as the setup gives it)."""
 FLAT_REGION_REASON = "no colour, and the faces read show one brightness"
 """How `_flat_region_reason`'s refusal begins."""
 
+GROWN_PART_MARGIN_PX = 5
+"""A detection grown across faint edges may touch another grey blob only where that blob lies within the grown
+blob's bounds widened by this (px) on each side: a darker face of the same cube (`_faces`' `regrown`)."""
+
+SAME_FACE_REASON = "the same face as the cube read at"
+"""How `_one_per_face`'s refusal begins."""
+
+
+def _one_per_face(results):
+    """`results` ((estimate, outline, reason or None, bbox) per measured face) with every face read where
+    another was read already (the centre of either's outline within the other's) refused, the one with the
+    lower edge misfit kept: two darker faces of one white cube, each grown across faint edges into its whole
+    front face (`_faces`' `regrown`)."""
+    kept, out = [], []
+    for est, outline, reason, bbox in results:
+        if not reason:
+            centre = np.mean(outline.corners_px, axis=0)
+            for j, k in enumerate(kept):
+                other = out[k][1]
+                other_centre = np.mean(other.corners_px, axis=0)
+                if _inside(centre, other.corners_px) or _inside(other_centre, outline.corners_px):
+                    if est.rms_residual < out[k][0].rms_residual:  # this one kept, the other refused
+                        (est, outline, reason, bbox), out[k] = out[k], (est, outline, None, bbox)
+                        centre, other_centre = other_centre, centre
+                    reason = (f"{SAME_FACE_REASON} ({other_centre[0]:.0f}, {other_centre[1]:.0f}) px from "
+                              "another blob")
+                    break
+            else:
+                kept.append(len(out))
+        out.append((est, outline, reason, bbox))
+    return out
+
+
+def _inside(point, corners) -> bool:
+    """Whether `point` (2,) lies inside (or on) the quadrilateral `corners` (4, 2), in pixels."""
+    return cv2.pointPolygonTest(np.asarray(corners, dtype=np.float32).reshape(-1, 1, 2),
+                                (float(point[0]), float(point[1])), False) >= 0
+
 
 def _face_colours(img, rays, cube: Cube, window) -> list:
     """Per face of `cube` (`raytrace.scene.FACE_AXES`), the colour the image shows where its reflected rays
@@ -702,23 +740,37 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                 yield face_mask | part, outline
 
     blobs = np.zeros(mask.shape, dtype=bool)  # every blob's pixels, refused ones too
+    grey_found = [det for det in detections if det.achromatic]  # (the grey search's are added as they come)
     for det in detections:
         blobs |= det.mask
     thin_strips = not compressed  # JPEG ringing beside an edge mimics a thin strip
 
     def regrown(det, fainter=True):
         """An achromatic detection grown across faint edges (`faint_regrowth`), usable and touching no
-        other blob: each such reading, one per (blur, steps) of `FAINT_EDGE_READINGS` in turn (without
-        `fainter`, only those at `FAINT_EDGE_CONTRAST`); then the convex hull (`convex_filled`) of the
-        detection itself and of each of those readings, where it fills notches the background bit out of
-        the blob."""
+        other blob but grey ones within its bounds (`GROWN_PART_MARGIN_PX`): each such reading, one per
+        (blur, steps) of `FAINT_EDGE_READINGS` in turn (without `fainter`, only those at
+        `FAINT_EDGE_CONTRAST`); then the convex hull (`convex_filled`) of the detection itself and of each
+        of those readings, where it fills notches the background bit out of the blob. A white cube before a
+        background of nearly its brightness may be found as two of its darker faces, each a blob of its own
+        (holdout 4040 s1/0: its side face, 9 × 42 px, and its bottom face, 42 × 12 px, below a front face 44 ×
+        233 px); grown, either takes in the other, which a neighbouring cube's blob, reaching beyond, is not.
+        Both may then be read as the cube: `_faces` keeps one (`_one_per_face`)."""
         gradients = {}  # each window's gradient per blur, shared by the readings at that blur
 
-        def alone(grown):  # usable and touching no other blob
+        def alone(grown):  # usable and touching no other blob but grey ones within its bounds
             if grown is None or grown.reason:
                 return False
             ring = cv2.dilate(grown.mask.view(np.uint8), np.ones((5, 5), np.uint8)).view(bool)
-            return not (ring & blobs & ~det.mask).any()
+            touched = ring & blobs & ~det.mask
+            if not touched.any():
+                return True
+            x0, y0, x1, y1 = grown.bbox
+            m = GROWN_PART_MARGIN_PX
+            for other in grey_found:
+                ox0, oy0, ox1, oy1 = other.bbox
+                if ox0 >= x0 - m and oy0 >= y0 - m and ox1 <= x1 + m and oy1 <= y1 + m:
+                    touched &= ~other.mask
+            return not touched.any()
 
         readings = [det]
         for smoothing, contrast in FAINT_EDGE_READINGS:
@@ -822,6 +874,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         grey = _unpacked(more.get(), mask.shape)
         for det in grey:
             blobs |= det.mask
+        grey_found += grey
         found = sorted(zip(detections + grey, outcomes + outline_all(grey), early + [None] * len(grey)),
                        key=lambda item: detection_order(item[0]))  # (stably: as `detect_cubes` orders them)
         detections, outcomes, early = (list(column) for column in zip(*found)) if found else ([], [], [])
@@ -951,7 +1004,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                            cost=[0.0 if f is not None else expected_work(m, method)
                                  for (m, _, _), f in zip(measured, first)],
                            progress=estimated)
-    for est, outline, reason, bbox in results:
+    for est, outline, reason, bbox in _one_per_face(results):
         if reason:
             refused.append(Refusal(bbox, reason))
             continue

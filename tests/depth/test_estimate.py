@@ -536,7 +536,8 @@ def test_a_side_face_as_bright_as_the_background_is_read_beyond_the_front_face(r
 def test_the_sigma_of_a_contour_reading_covers_a_side_face_as_bright_as_the_background(rig):
     """A cube turned 15° whose side face is as bright as the background: the silhouette shows no side face on
     either side, and `exact` reads both sides as the outer contour. On this rig's face (edges 0.02 px noisy) that
-    reading fits them to 0.04 px at a turn that shows no side face, its depth 26 % far, under the misfit that has
+    reading fits them to 0.04 px at a turn that shows a side face 1.5 px wide merged with the front face (as
+    bright as it), its depth 26 % far, under the misfit that has
     the sides read again (`_background_sides`: 0.25 px here), and its σ says 3.4 %: 7.6 σ. The σ should cover the
     depth (within 3 σ)."""
     cube = rig.cube(0.5, 10.0, yaw_deg=15.0)
@@ -1721,6 +1722,35 @@ def test_a_grey_side_face_found_alone_and_narrowing_to_a_neck_is_grown_across_fa
     depth = float(mirror.distance_to_axis(centre[None])[0])
     assert np.linalg.norm(found[0].estimate.center - centre) < 0.2 * depth
     assert abs(found[0].depth - depth) < 2.0 * found[0].depth_std
+
+
+MITSUBA_GREY_TWO_PARTS_CROP = (Path(__file__).resolve().parents[1] / "data" / "mitsuba_grey_4040_s1_0.png",
+                               (150, 300), 2995.164, (799.5 - 1000, 599.5 - 430), (0.0, -0.02259, 0.44299), 0.078,
+                               0.45765)
+"""A 150×300 crop, from (1000, 430), of a Mitsuba 3 render (16 spp; the holdout `python -m bench.holdout 4040`, scene
+1): a light grey cube 4.59 cm across, 0.31 m from the mirror axis, turned 20°, its front face 44 × 233 px before a
+sky shading from cream to olive, as bright as the sky on its right; its side face a light strip 5 px wide and its
+bottom face a dark one 12 px tall."""
+
+
+def test_a_grey_cube_found_as_two_of_its_faces_is_grown_into_one_cube():
+    """The whole pipeline on the crop. The cube is found as two blobs: its side face (9 × 42 px) and its bottom
+    face (42 × 12 px). Grown across faint edges, each took in the other's blob and was refused for touching it,
+    but for a reading of the side face that filled only the upper 155–170 px of the front face (4.4 px misfit):
+    the cube was refused. A grown blob may now take in a grey blob within its bounds (`GROWN_PART_MARGIN_PX`),
+    and of the two readings of the face one is kept (`_one_per_face`): the cube within 1 % of its centre and 2 σ
+    of its depth."""
+    from depth.reconstruct import SAME_FACE_REASON, reconstruct
+
+    image, camera, mirror = _crop_setup(*MITSUBA_GREY_TWO_PARTS_CROP)
+    rec = reconstruct(image, camera, mirror, workers=1)
+    assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
+    found = rec.cubes[0]
+    centre = np.array([0.24328, 0.01175, 0.19837])
+    depth = float(mirror.distance_to_axis(centre[None])[0])
+    assert np.linalg.norm(found.estimate.center - centre) < 0.01 * depth
+    assert abs(found.depth - depth) < 2.0 * found.depth_std
+    assert [r for r in rec.refused if r.reason.startswith(SAME_FACE_REASON)] != []
 
 
 FLOOR_SHADOW_CURVED_CROP = (Path(__file__).resolve().parents[1] / "data" / "mitsuba_floor_shadow_5050_s0.png", (48, 64),
