@@ -204,7 +204,8 @@ def test_a_helper_starts_on_the_first_payload_sent_and_takes_the_later_ones_from
     def task(first, progress, inbox):
         # the first payload's work, done while nothing else has come; then the second, waited for
         waited = not inbox.ready()  # (before "started": the test sends the second payload only after it)
-        (tmp_path / "started").write_text(str(first))
+        (tmp_path / "starting").write_text(str(first))
+        os.replace(tmp_path / "starting", tmp_path / "started")  # whole when the poll below sees it
         second = inbox.get()
         return first, second, waited, inbox.ready()
 
@@ -379,7 +380,10 @@ def test_a_helper_closed_while_it_runs_its_task_is_ended_not_waited_for(tmp_path
     _fresh_module(tmp_path, monkeypatch, "helper_mod4")
 
     def work(i):  # in the workers the helper forks
-        (tmp_path / f"worker{i}").write_text(str(os.getpid()))
+        # written under another name and renamed: the file that the poll below sees appear is whole (written in
+        # place, it was once read between its creation and its write, empty)
+        (tmp_path / f"pid{i}").write_text(str(os.getpid()))
+        os.replace(tmp_path / f"pid{i}", tmp_path / f"worker{i}")
         time.sleep(60)
 
     def task(payload, progress, inbox):
