@@ -284,7 +284,7 @@ def _one_per_face(results):
     for est, outline, reason, bbox in results:
         if not reason:
             centre = np.mean(outline.corners_px, axis=0)
-            for j, k in enumerate(kept):
+            for k in kept:
                 other = out[k][1]
                 other_centre = np.mean(other.corners_px, axis=0)
                 if _inside(centre, other.corners_px) or _inside(other_centre, outline.corners_px):
@@ -750,7 +750,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         other blob but grey ones within its bounds (`GROWN_PART_MARGIN_PX`): each such reading, one per
         (blur, steps) of `FAINT_EDGE_READINGS` in turn (without `fainter`, only those at
         `FAINT_EDGE_CONTRAST`); then the convex hull (`convex_filled`) of the detection itself and of each
-        of those readings, where it fills notches the background bit out of the blob. A white cube before a
+        of those readings, where it fills notches the background bit out of the blob. A white or grey cube before a
         background of nearly its brightness may be found as two of its darker faces, each a blob of its own
         (holdout 4040 s1/0: its side face, 9 × 42 px, and its bottom face, 42 × 12 px, below a front face 44 ×
         233 px); grown, either takes in the other, which a neighbouring cube's blob, reaching beyond, is not.
@@ -795,7 +795,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         handed back: its full-image masks, pickled from the worker processes, came to 47 MB for a
         2048×1536 image's 5 cubes.) A detection refused for its neck alone (`NECK_REASON`) is grown so too: a
         grey side face found alone, its strip broken by the path tracer's noise, narrows there (holdout 9090
-        s3/0, a white cube before a floor as bright, its side face a strip 7 px wide)."""
+        s3/0, a white cube before a floor as bright, its side face a strip 4–6 px wide)."""
         outcome = outline_detection(det)
         if isinstance(outcome, str) and det.achromatic and not (
                 (det.reason and det.reason != NECK_REASON) or det.cut_by_mirror_edge or det.occluded):

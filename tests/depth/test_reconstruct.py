@@ -1,6 +1,7 @@
 """Tests of depth.reconstruct's physical checks on an estimate, on analytic geometry (no renderer)."""
 
 import functools
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -369,3 +370,30 @@ def test_a_bottom_face_lit_like_the_front_face_is_no_flat_region():
     assert abs(image[faces == 3].mean() - image[faces == 4].mean()) < 0.01
     assert _flat_region_reason(image, rays, est, blob, up, sky) is None
     assert _flat_region_reason(image, rays, est, blob, -up, sky) is None
+
+
+@pytest.mark.parametrize("later_fits_better", [False, True])
+def test_of_two_readings_of_one_face_the_one_with_the_lower_misfit_is_kept(later_fits_better):
+    """`_one_per_face` on three readings: two of one face (the second's outline shifted 3 px, each centre
+    inside the other's outline) and one elsewhere. The one with the lower edge misfit is kept, whichever
+    came first, and the other refused naming the kept one's centre; the third and a refused reading pass."""
+    from types import SimpleNamespace
+
+    from depth.reconstruct import SAME_FACE_REASON, _one_per_face
+
+    def reading(x0, misfit, reason=None):
+        corners = np.array([[x0, 10.0], [x0 + 20.0, 10.0], [x0 + 20.0, 90.0], [x0, 90.0]])
+        return (replace(_cube_at((0.1, 0.0, 0.4)), rms_residual=misfit), SimpleNamespace(corners_px=corners),
+                reason, (int(x0), 10, int(x0) + 20, 90))
+
+    first, second = reading(100.0, 0.3), reading(103.0, 0.2 if later_fits_better else 0.4)
+    apart, refused = reading(300.0, 0.5), reading(101.0, 0.1, "face outline: too few edge points")
+    out = _one_per_face([first, second, apart, refused])
+    kept, other = (second, first) if later_fits_better else (first, second)
+    passed = [r[0] for r in out if r[2] is None]
+    assert len(passed) == 2 and passed[0] is kept[0] and passed[1] is apart[0]
+    same = [r for r in out if r[2] and r[2].startswith(SAME_FACE_REASON)]
+    assert len(same) == 1 and same[0][0] is other[0]
+    centre = np.mean(kept[1].corners_px, axis=0)
+    assert f"({centre[0]:.0f}, {centre[1]:.0f}) px" in same[0][2]
+    assert [r[2] for r in out if r[0] is refused[0]] == [refused[2]]
