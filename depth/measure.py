@@ -411,19 +411,22 @@ def _reaching_rim(mask: np.ndarray, search: np.ndarray, connectivity: int) -> np
     return reach[labels]
 
 
-def _channel_gradient(rgb: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+def _channel_gradient(rgb: np.ndarray, sigma: float, blue_red: bool = False) -> tuple[np.ndarray, ...]:
     """(dx, dy) int16 3 × 3 Sobel gradients of sRGB `rgb` (h, w, 3) rounded to 8 bits (value · 255 in float32,
     as OpenCV's `convertScaleAbs` computes it) after a Gaussian blur of `sigma` px, each pixel's from its
-    channel of the largest |dx| + |dy| (the first of equal ones, as argmax would pick)."""
+    channel of the largest |dx| + |dy| (the first of equal ones, as argmax would pick). With `blue_red`, also
+    the (dx, dy) of blue − red, the difference of those channels' gradients (the Sobel of a difference is the
+    difference of the Sobels): (dx, dy, blue − red dx, blue − red dy)."""
     u8 = cv2.GaussianBlur(cv2.convertScaleAbs(rgb, alpha=255.0), (0, 0), sigma)  # rounds and saturates
     # cv2.spatialGradient: the same 3 × 3 Sobel and border as cv2.Sobel, dx and dy in one pass (half the time)
     dx, dy = zip(*(cv2.spatialGradient(c) for c in cv2.split(u8)))
-    # each at most 4 × 255, so int16 holds the sum; selected plane by plane (argmax across the channels and
-    # a gather took 2-3 times as long)
+    # each at most 4 × 255, so int16 holds the sum (and the difference); selected plane by plane (argmax across
+    # the channels and a gather took 2-3 times as long)
+    blue_minus_red = (dx[2] - dx[0], dy[2] - dy[0]) if blue_red else ()
     mag = [np.abs(a) + np.abs(b) for a, b in zip(dx, dy)]
     second, third = mag[1] > mag[0], mag[2] > np.maximum(mag[0], mag[1])
     dx, dy = (np.where(third, g[2], np.where(second, g[1], g[0])) for g in (dx, dy))
-    return dx, dy
+    return (dx, dy, *blue_minus_red)
 
 
 BRIDGED_CHAIN_PX = 6
@@ -692,7 +695,7 @@ def convex_filled(image: np.ndarray, mirror_mask: np.ndarray, detection: CubeDet
 
 def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_share: float,
               contrast: tuple[float, float] = ENCLOSING_EDGE_CONTRAST, close_px: int = 3, sigma: float = 1.0,
-              gradient: tuple[np.ndarray, np.ndarray] | None = None, bays: bool = False):
+              gradient: tuple[np.ndarray, ...] | None = None, bays: bool = False, blue_red: bool = False):
     """(background pixels, seed pixels, edge pixels) of a background of no one colour, else None.
 
     A sky reflected in a cylinder shades smoothly across the mirror and meets the floor at a
@@ -702,12 +705,21 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
     to close gaps at corners; the background is every region between them that reaches the edge of
     the mirror region (an object reaching it would be cut anyway), kept only where it holds
     `background_share` of `rest` (a checkered ground's cells are enclosed each). Every enclosed
-    pixel is a seed. `gradient`: `_channel_gradient(rgb, sigma)`, where the caller has it already. With
+    pixel is a seed. `gradient`: `_channel_gradient(rgb, sigma, blue_red)`, where the caller has it already. With
     `bays`, an object of one background's colour standing across its boundary with another (a grey cube
-    before the sky and the floor), which the background floods, is taken out of it (`_bays_continued`)."""
-    dx, dy = _channel_gradient(rgb, sigma) if gradient is None else gradient
+    before the sky and the floor), which the background floods, is taken out of it (`_bays_continued`).
+
+    With `blue_red` (an uncompressed image), the edges of blue − red at the same steps are edges too: a white
+    face lit by the blue sky before a sky or floor lit by a yellowish sun steps by under the strong step in
+    every channel (0.028–0.045 of sRGB), but by 0.047–0.060 in blue − red, where a path tracer's brightness noise
+    cancels (the median gradient over the mirror about 3 times lower). A JPEG image keeps blue − red, mostly
+    chroma, at half resolution (4:2:0) and rings in it: its edges there stray from the face's (holdout 6060
+    all grey JPEG s2/3, 5.1 → 38.6 % off at +4.3 σ with them)."""
+    dx, dy, *blue_minus_red = _channel_gradient(rgb, sigma, blue_red) if gradient is None else gradient
     weak, strong = (3.2 * 255.0 * c for c in contrast)
     edges = _bridged_canny(dx, dy, weak, strong)
+    if blue_red:
+        edges |= _bridged_canny(*blue_minus_red, weak, strong)
     square = np.ones((close_px, close_px), np.uint8)
     free = search & ~cv2.dilate((edges & search).astype(np.uint8), square).astype(bool)
     near = _reaching_rim(free, search, 4)
@@ -802,7 +814,7 @@ def _nearest_means(img: np.ndarray, mask: np.ndarray, where: np.ndarray) -> np.n
 
 
 def _achromatic_regions(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarray, min_area: int,
-                        background_share: float = 0.5, ring_share: float = 0.9) -> list:
+                        background_share: float = 0.5, ring_share: float = 0.9, blue_red: bool = False) -> list:
     """Grey, white or black objects: regions that are not background, each as (local mask,
     (row, col) offset), in the window of its bounding box.
 
@@ -814,7 +826,7 @@ def _achromatic_regions(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarra
     (at least `ring_share` of it): a cell of a checkered ground borders other cells. An enclosed
     region is also one only where the pixels 3–8 px around it are under `ENCLOSING_CLUTTER` edges.
     Regions within 3 px of a coloured blob are left out: there they are a coloured cube's dark or
-    washed-out face, not another object.
+    washed-out face, not another object. `blue_red`: the edges of blue − red are edges too (`_enclosed`).
     """
     rest = search & ~coloured
     if int(rest.sum()) < min_area:
@@ -822,7 +834,7 @@ def _achromatic_regions(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarra
     found = _uniform_background(rgb, search, rest, min_area, background_share)
     if found is None or found is _SHADES:
         shades = found is _SHADES
-        found = _enclosed(rgb, search, rest, background_share, bays=True)
+        found = _enclosed(rgb, search, rest, background_share, bays=True, blue_red=blue_red)
         if found is None and shades:  # no edges enclose regions there: the one colour, shading and all
             found = _uniform_background(rgb, search, rest, min_area, background_share, allow_shading=True)
     if found is None:
@@ -923,7 +935,10 @@ def faint_regrowth(image: np.ndarray, mirror_mask: np.ndarray, detection: CubeDe
     blob. Here edges are looked for again in a window about the blob, `pad` = half its larger extent
     (at least 20 px) on each side, at the steps `contrast` after a blur of `smoothing_px` (one of
     `FAINT_EDGE_READINGS`, which `depth.reconstruct` tries in turn), thickened to 5 px (the
-    corners of faint faces leave wider gaps), as `_enclosed` does over the mirror. The grown blob is
+    corners of faint faces leave wider gaps), as `_enclosed` does over the mirror (but for the edges of blue − red:
+    traced here too, they found no more holdout cubes, and at these fainter steps, under noise independent in red
+    and blue, a synthetic face failed to grow, `test_a_tall_white_face_found_as_its_sliver_of_a_top_face_alone_is_
+    regrown_whole`, one seed of three). The grown blob is
     the blob with the regions that the background (the window's part reaching its rim) leaves about
     it and that share 10 or more pixels with it, holes filled (edges of noise inside a face) and
     closed (7 px). Nothing where it exceeds the blob by under 20 % or reaches within 3 px of the
@@ -1130,7 +1145,9 @@ def detect_cubes(
         The image went through lossy (JPEG) compression, whose ringing raises a face's colour over
         a few columns inside it: a line of gradient between parts of one level then splits no faces
         (`_stepped_span`). In an uncompressed image such a line is a fold between two faces lit alike
-        (a grey cube's front and side faces under the sky alone) and splits them.
+        (a grey cube's front and side faces under the sky alone) and splits them. Only in an uncompressed image
+        does the grey search trace the edges of blue − red besides (`_enclosed`'s `blue_red`): JPEG keeps blue − red
+        at half resolution.
     coloured_found : callable(list of CubeDetection), optional
         Called with the coloured cubes' detections (in the order of the result) as soon as they are found,
         before the search for grey, white and black ones, which takes most of the time (0.5 s of a
@@ -1238,7 +1255,7 @@ def detect_cubes(
         coloured_found(coloured)
     # Grey, white or black objects (found only on a uniform background): one blob each.
     grey = []
-    for piece, (y, x) in _achromatic_regions(rgb, search, candidates, min_area):
+    for piece, (y, x) in _achromatic_regions(rgb, search, candidates, min_area, blue_red=not compressed):
         fragments[y : y + piece.shape[0], x : x + piece.shape[1]][piece] = next_id
         next_id += 1
         if piece.sum() >= min_area:

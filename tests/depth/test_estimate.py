@@ -1794,15 +1794,22 @@ sky shading from cream to olive, as bright as the sky on its right; its side fac
 bottom face a dark one 12 px tall."""
 
 
-def test_a_grey_cube_found_as_two_of_its_faces_is_grown_into_one_cube():
-    """The whole pipeline on the crop. The cube is found as two blobs: its side face (9 × 42 px) and its bottom
-    face (42 × 12 px). Grown across faint edges, each took in the other's blob and was refused for touching it,
-    but for a reading of the side face that filled only the upper 155–170 px of the front face (4.4 px misfit):
-    the cube was refused. A grown blob may now take in a grey blob within its bounds (`GROWN_PART_MARGIN_PX`),
-    and of the two readings of the face one is kept (`_one_per_face`): the cube within 1 % of its centre and 2 σ
-    of its depth."""
+@pytest.mark.parametrize("blue_red", [False, True])
+def test_a_grey_cube_found_as_two_of_its_faces_is_grown_into_one_cube(monkeypatch, blue_red):
+    """The whole pipeline on the crop. Where the grey search traces brightness edges alone (as in a JPEG image,
+    `_enclosed`'s `blue_red` off), the cube is found as two blobs: its side face (9 × 42 px) and its bottom face
+    (42 × 12 px). Grown across faint edges, each took in the other's blob and was refused for touching it, but
+    for a reading of the side face that filled only the upper 155–170 px of the front face (4.4 px misfit): the
+    cube was refused. A grown blob may now take in a grey blob within its bounds (`GROWN_PART_MARGIN_PX`), and of
+    the two readings of the face one is kept (`_one_per_face`): the cube within 1 % of its centre and 2 σ of its
+    depth. With the edges of blue − red as well (this uncompressed image's own reading), the search finds the
+    whole cube as one blob, and a second reading of its face, grown from another blob, is refused so too."""
+    from depth import measure
     from depth.reconstruct import SAME_FACE_REASON, reconstruct
 
+    if not blue_red:
+        enclosed = measure._enclosed
+        monkeypatch.setattr(measure, "_enclosed", lambda *a, **k: enclosed(*a, **{**k, "blue_red": False}))
     image, camera, mirror = _crop_setup(*MITSUBA_GREY_TWO_PARTS_CROP)
     rec = reconstruct(image, camera, mirror, workers=1)
     assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
@@ -1812,6 +1819,29 @@ def test_a_grey_cube_found_as_two_of_its_faces_is_grown_into_one_cube():
     assert np.linalg.norm(found.estimate.center - centre) < 0.01 * depth
     assert abs(found.depth - depth) < 2.0 * found.depth_std
     assert [r for r in rec.refused if r.reason.startswith(SAME_FACE_REASON)] != []
+
+
+MITSUBA_WHITE_ACROSS_HORIZON_CROP = (Path(__file__).resolve().parents[1] / "data" / "mitsuba_grey_4040_s2_0.png",
+                                     (120, 260), 2635.035, (639.5 - 680, 479.5 - 400), (0.0, 0.02224, 0.50541),
+                                     0.08413, 0.46011)
+"""A 120×260 crop, from (680, 400), of a Mitsuba 3 render (16 spp; the holdout `python -m bench.holdout 4040 --grey`,
+scene 2, cube 0): a white cube 5.85 cm across, 0.77 m from the mirror axis, its front face 20 × 142 px standing
+across the horizon, 11 levels of 255 darker than the floor in every channel (under the strong step the edges are
+traced at) and bluer than the cream sky above it."""
+
+
+def test_a_white_face_across_the_horizon_is_enclosed_by_the_edges_of_blue_minus_red():
+    """The whole pipeline on the crop: the cube is found, within 1 % of its centre and 2 σ of its depth. Without
+    the edges of blue − red (`_enclosed`'s `blue_red`) the grey search found no blob there at all."""
+    from depth.reconstruct import reconstruct
+
+    image, camera, mirror = _crop_setup(*MITSUBA_WHITE_ACROSS_HORIZON_CROP)
+    rec = reconstruct(image, camera, mirror, workers=1)
+    assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
+    centre = np.array([0.29425, -0.0463, 0.71129])
+    depth = float(mirror.distance_to_axis(centre[None])[0])
+    assert np.linalg.norm(rec.cubes[0].estimate.center - centre) < 0.01 * depth
+    assert abs(rec.cubes[0].depth - depth) < 2.0 * rec.cubes[0].depth_std
 
 
 FLOOR_SHADOW_CURVED_CROP = (Path(__file__).resolve().parents[1] / "data" / "mitsuba_floor_shadow_5050_s0.png", (48, 64),

@@ -406,10 +406,13 @@ def path_traced_noise(image, where, sigma, seed):
     return out
 
 
-@pytest.mark.xfail(strict=True, reason="open: edges traced in blue − red as well find this face, and holdout 9090 "
-                   "s4/0, but invented a cube on the lighting bench (a white cube's side face against the sky) "
-                   "and put another 224 % off (thirty-first session)")
-@pytest.mark.parametrize("seed", [0, 1, 2])
+_TOP_ROWS_LEFT_OUT = pytest.mark.xfail(strict=True, reason="open: found since the eighty-second session traces the "
+                                      "edges of blue − red, but the blob leaves the face's top 6-10 rows out (IoU "
+                                      "0.87-0.88)")
+
+
+@pytest.mark.parametrize("seed", [pytest.param(0, marks=_TOP_ROWS_LEFT_OUT), pytest.param(1, marks=_TOP_ROWS_LEFT_OUT),
+                                  2])
 def test_a_white_face_lit_bluer_than_a_warm_sky_is_found_by_its_blue_yellow_edges(seed):
     """A white cube's front face lit by the blue sky before a yellowish sky or floor lit by the sun
     (holdout 9090 s4/0, 80 × 306 px, and s5/3 are missed so): each channel steps by 0.03 at most at its
@@ -636,7 +639,7 @@ def test_readings_in_turn_that_share_their_gradients_find_what_each_finds_alone(
 def test_the_edge_gradient_is_the_sobel_of_the_channel_with_the_largest_one(height, width, sigma, seed):
     """`_channel_gradient` against a reference written apart: scipy's Sobel (its "mirror" border is
     OpenCV's default, reflect-101) of each blurred 8-bit channel, the channel of the largest |dx| + |dy|
-    taken per pixel (the first of equal ones). The 8 bits are rounded from float32(value)·255 in float32,
+    taken per pixel (the first of equal ones), and with `blue_red` that of blue − red besides. The 8 bits are rounded from float32(value)·255 in float32,
     half to even, as OpenCV's `convertScaleAbs` rounds a float64 image: rounded in float64, a value within
     float32's precision of a half (0.5745098102318715 · 255 = 146.5000016) comes out a level apart."""
     import cv2
@@ -654,6 +657,12 @@ def test_the_edge_gradient_is_the_sobel_of_the_channel_with_the_largest_one(heig
     dx, dy = _channel_gradient(rgb, sigma)
     np.testing.assert_array_equal(dx, np.take_along_axis(gx, pick, axis=-1)[..., 0])
     np.testing.assert_array_equal(dy, np.take_along_axis(gy, pick, axis=-1)[..., 0])
+    # with `blue_red`: the same, and scipy's Sobel of the blurred blue − red
+    dx2, dy2, bx, by = _channel_gradient(rgb, sigma, blue_red=True)
+    np.testing.assert_array_equal(dx2, dx)
+    np.testing.assert_array_equal(dy2, dy)
+    np.testing.assert_array_equal(bx, scipy.ndimage.sobel(u8[..., 2] - u8[..., 0], axis=1, mode="mirror"))
+    np.testing.assert_array_equal(by, scipy.ndimage.sobel(u8[..., 2] - u8[..., 0], axis=0, mode="mirror"))
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -3102,3 +3111,25 @@ def test_noise_alone_seldom_makes_a_run():
     rng = np.random.default_rng(7)
     runs = [_run_end(0.004 * rng.standard_normal((int(n), 3)))[2] >= RUN_SIGMAS for n in rng.integers(12, 400, 400)]
     assert np.mean(runs) < 0.05
+
+
+@pytest.mark.parametrize("blue_red", [False, True])
+def test_a_face_that_steps_in_blue_minus_red_alone_is_enclosed_only_with_those_edges(blue_red):
+    """`_enclosed` on a warm sky shading across the mirror, with a face 30 × 80 px whose red falls by 0.025 and
+    blue rises by 0.04 (a white face lit by the blue sky): in every channel it steps by under the strong step,
+    so that Canny's hysteresis drops its weak edges and the background floods it; in blue − red it steps by
+    0.065, over the strong step, and with `blue_red` those edges enclose it (the background leaves its inside)."""
+    import cv2
+
+    from depth.measure import _enclosed
+
+    h, w = 160, 200
+    yy, xx = np.mgrid[0:h, 0:w]
+    rgb = np.stack([0.80 + 0.10 * xx / w, 0.78 + 0.10 * xx / w, 0.70 + 0.10 * xx / w], axis=-1)
+    face = (yy >= 40) & (yy < 120) & (xx >= 85) & (xx < 115)
+    rgb[face] += [-0.025, 0.0, 0.04]
+    search = np.zeros((h, w), dtype=bool)
+    search[2:-2, 2:-2] = True
+    background, _, _ = _enclosed(rgb, search, search, 0.5, blue_red=blue_red)
+    inside = cv2.erode(face.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
+    assert np.mean(background[inside]) == (0.0 if blue_red else 1.0)
