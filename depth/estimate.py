@@ -790,8 +790,9 @@ def _shows_apart(image: np.ndarray, face: np.ndarray, around: np.ndarray) -> boo
         return False
     a, b = a.reshape(len(a), -1).astype(np.float64), b.reshape(len(b), -1).astype(np.float64)
     step = np.abs(a.mean(axis=0) - b.mean(axis=0))
-    se = np.sqrt(a.var(axis=0) / len(a) + b.var(axis=0) / len(b))
-    spread = np.sqrt((a.var(axis=0) + b.var(axis=0)) / 2.0)
+    var_a, var_b = a.var(axis=0), b.var(axis=0)
+    se = np.sqrt(var_a / len(a) + var_b / len(b))
+    spread = np.sqrt((var_a + var_b) / 2.0)
     return bool(np.any((step >= ABSENT_FACE_STEP_Z * np.maximum(se, 1e-12)) & (step >= ABSENT_FACE_SPREAD * spread)))
 
 
