@@ -513,10 +513,13 @@ def _pockets_cut(rgb: np.ndarray, near: np.ndarray, search: np.ndarray, step: fl
     return out
 
 
-BAY_RADIUS_PX = 30
-"""Radius (px) of the disc that `_bays_continued` opens the background with: the parts of the background the
-opening removes, narrower than twice this, are its bays. The objects crossing a horizon that it was
-measured on (holdout renders) are 25–51 px wide."""
+BAY_RADII_PX = (30, 45)
+"""Radii (px) of the discs that `_bays_continued` opens the background with, in turn: the parts of the background
+an opening removes, narrower than twice its radius, are its bays. The objects crossing a horizon that the first was
+measured on (holdout renders) are 25–51 px wide; a grey cube 74 px wide (holdout 7070 all grey JPEG s6/4, 74 ×
+350 px, its lower part before a floor of its brightness, which the JPEG's despeckled image shows no edge against)
+is no bay of the first opening, which it survives whole, and was not found. The second opening, of the background
+the first left (the narrower objects taken out of it already), takes bays up to 90 px wide."""
 
 BAY_MIN_AREA = 200
 """Least pixels of a bay for `_bays_continued` to take it for part of an object."""
@@ -575,7 +578,7 @@ def _bays_continued(rgb: np.ndarray, near: np.ndarray, search: np.ndarray) -> np
     part before the sky is outlined by edges on three sides but its part before the floor is not, and the
     floor floods it through the gap: the object is a bay of the floor, and was not found (holdout 8080 s7/0,
     a grey cube 37 × 207 px whose lower part is 4 of 255 darker than the floor, with a pixel noise of 5).
-    The bays are the parts of the background that an opening by a disc of `BAY_RADIUS_PX` removes. A bay is
+    The bays are the parts of the background that an opening by a disc of each of `BAY_RADII_PX` removes. A bay is
     part of such an object where it is upright (twice as tall as wide: the mirror's axis upright in the
     image, as an XSlit images the object's upright edges as lines), holds `BAY_MIN_AREA` pixels filling
     `BAY_FILL` of its box, and the ring 4–8 px about it is background of another colour for
@@ -589,8 +592,14 @@ def _bays_continued(rgb: np.ndarray, near: np.ndarray, search: np.ndarray) -> np
     grey s2/3, whose lower part differs from the floor in hue alone (R +3.7, G +2.7, B −0.6 of 255: 1.9 in
     brightness), was outlined 13 px off at its bottom and came out 135 % off. The bay and its run (between
     the sides widened by the edges' 2 px) are taken out of the background; a bay whose object does not run
-    on so is left in it."""
-    r = BAY_RADIUS_PX
+    on so is left in it. Each opening's bays are taken out before the next opening (`BAY_RADII_PX`)."""
+    for radius in BAY_RADII_PX:
+        near = _bays_at(rgb, near, search, radius)
+    return near
+
+
+def _bays_at(rgb: np.ndarray, near: np.ndarray, search: np.ndarray, r: int) -> np.ndarray:
+    """`_bays_continued`'s change of `near` at one radius `r` (px) of the opening disc."""
     inner = cv2.distanceTransform((near | ~search).view(np.uint8), cv2.DIST_L2, 5) > r
     opened = cv2.distanceTransform((~inner).view(np.uint8), cv2.DIST_L2, 5) <= r
     bays = near & ~opened

@@ -3039,15 +3039,15 @@ print(len(dets), sorted({m for m in sys.modules if m.startswith("scipy.")} - bef
 
 
 def across_the_horizon(lower, upper=None, noise=2 / 255, seed=0, shape=(320, 300), face=(135.3, 165.6, 60.4, 262.7),
-                       supersample=4):
-    """A bright sky over a grey floor (linear 0.3), the horizon at row 160 + 0.1 (u − 150), and an upright face
-    (u0, u1, v0, v1 px) standing across it, of linear colour `lower` below the horizon and `upper` (default
+                       supersample=4, horizon=160.0):
+    """A bright sky over a grey floor (linear 0.3), the horizon at row `horizon` + 0.1 (u − 150), and an upright
+    face (u0, u1, v0, v1 px) standing across it, of linear colour `lower` below the horizon and `upper` (default
     `lower`) above it; sRGB with Gaussian noise, rounded to 8 bits. Returns (image, mirror mask, face mask by
     pixel centre)."""
     h, w = shape
     ss = supersample
     u, v = np.meshgrid((np.arange(w * ss) + 0.5) / ss - 0.5, (np.arange(h * ss) + 0.5) / ss - 0.5)
-    floor = v > 160.0 + 0.1 * (u - 150.0)
+    floor = v > horizon + 0.1 * (u - 150.0)
     img = np.where(floor[..., None], 0.3, np.array([0.85, 0.88, 0.92]) * (1.0 + 0.1 * u / w)[..., None])
     u0, u1, v0, v1 = face
     inside = (u > u0) & (u < u1) & (v > v0) & (v < v1)
@@ -3075,6 +3075,22 @@ def test_a_face_of_the_floors_colour_standing_across_the_horizon_is_found_whole(
     iou = (found.mask & face).sum() / (found.mask | face).sum()
     assert iou > 0.9
     assert abs(found.bbox[3] - 263) <= 2 and abs(found.bbox[1] - 60) <= 2
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_face_too_wide_for_the_first_opening_standing_across_the_horizon_is_found_whole(seed):
+    """A face 76 px wide, 5 of 255 darker than the floor (holdout 7070 all grey JPEG s6/4: 74 × 350 px): the
+    disc of the first opening (`BAY_RADII_PX`, 30 px) fits inside its part before the sky, which is no bay of
+    that opening, and the floor flooded it: nothing was found. The second opening's bay, it is found whole."""
+    from depth.measure import BAY_RADII_PX
+
+    assert 2 * BAY_RADII_PX[0] < 76 < 2 * BAY_RADII_PX[-1]
+    image, mirror, face = across_the_horizon(0.27, seed=seed, shape=(440, 300), face=(112.3, 188.6, 40.4, 352.7),
+                                             horizon=250.0)
+    (found,) = detect_cubes(image, mirror)
+    assert found.usable and found.achromatic, found.reason
+    assert (found.mask & face).sum() / (found.mask | face).sum() > 0.9
+    assert abs(found.bbox[3] - 353) <= 2 and abs(found.bbox[1] - 40) <= 2
 
 
 def test_a_white_face_of_the_skys_colour_standing_across_the_horizon_is_found_whole():
