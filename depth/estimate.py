@@ -1676,7 +1676,7 @@ def estimate_faces_shape_prior(rays: RayFunction, measurements, seed: int = 0) -
 
 
 def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact",
-                  cube_size: float | None = None, seed: int = 0, up=None):
+                  cube_size: float | None = None, seed: int = 0, up=None, defer: bool = False):
     """Estimate one cube from its measured front face; returns `CubeEstimate` or `FailedEstimate`.
 
     Parameters
@@ -1690,6 +1690,10 @@ def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact
     up : (3,) float64, optional
         The scene's vertical (the mirror axis): ``exact`` first fits a face whose vertical sides are
         parallel to it, and tilts it only when the edges demand. Default: the local axis-parallel slit.
+    defer : bool
+        An ``exact`` estimate comes as (the estimate with its first-order σ, a function giving it with its σ
+        complete), as `_exact`'s `defer`: the same estimate, without the turn profile that completes its σ
+        unless asked (`depth.reconstruct` compares a face's other reading by its centre first).
     """
     if method not in METHODS:
         raise DepthError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
@@ -1708,7 +1712,7 @@ def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact
         return start
     reading = _background_sides(rays, meas, start, local, cube_size, up,
                                 _silhouette_reading(rays, meas, start, local, cube_size, up))
-    return reading if not isinstance(reading, tuple) else reading[1]()
+    return reading if defer or not isinstance(reading, tuple) else reading[1]()
 
 
 def _silhouette_reading(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local: LocalXSlit,

@@ -955,9 +955,11 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                 blob, face_px, channels = alternatives[k]
                 alt_outline = outline.alternative
                 alt_meas = _measurement(img, blob, alt_outline, face_px, channels, compressed)
-                alt = estimate_face(rays, alt_meas, method=method, cube_size=cube_size, up=up)
+                # (its σ completed only where it is taken: its centre alone decides the covering)
+                alt = estimate_face(rays, alt_meas, method=method, cube_size=cube_size, up=up, defer=True)
+                alt, complete = alt if isinstance(alt, tuple) else (alt, lambda alt=alt: alt)
                 if alt and not est:
-                    est, meas, outline = alt, alt_meas, alt_outline
+                    est, meas, outline = complete(), alt_meas, alt_outline
                 elif alt and abs(alt.z - est.z) > 2.0 * est.std["z"] and verdict(k, alt, alt_meas) is None:
                     est = _covering(est, alt, 0.5)
         reason = verdict(k, est, meas)
