@@ -55,8 +55,8 @@ def test_exact_estimator_recovers_any_pose_exactly(rig, distance, azimuth, yaw, 
     assert np.dot(est.normal, true_normal) > 1 - 1e-9
 
 
-@given(st.floats(0.45, 0.9), st.floats(-30.0, 30.0), st.floats(0.02, 0.045), st.floats(7.5, 12.0), st.sampled_from([-1, 1]),
-       st.integers(0, 1000))
+@given(st.floats(0.45, 0.9), st.floats(-30.0, 30.0), st.floats(0.02, 0.045), st.floats(7.5, 12.0),
+       st.sampled_from([-1, 1]), st.integers(0, 1000))
 @settings(max_examples=25, deadline=None, derandomize=True)
 @example(0.6559108, 27.027822, 0.02360399, 10.767587, 1, 0)  # the sweep's first refusal: a side face 0.84 px wide
 def test_a_side_face_a_pixel_wide_fixes_the_turn_under_noise(rig, distance, azimuth, size, yaw, sign, seed):
