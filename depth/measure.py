@@ -593,14 +593,20 @@ def _bays_continued(rgb: np.ndarray, near: np.ndarray, search: np.ndarray) -> np
     brightness), was outlined 13 px off at its bottom and came out 135 % off. The bay and its run (between
     the sides widened by the edges' 2 px) are taken out of the background; a bay whose object does not run
     on so is left in it. Each opening's bays are taken out before the next opening (`BAY_RADII_PX`)."""
+    dist = None  # each pixel's distance from the nearest pixel neither background nor outside the mirror
     for radius in BAY_RADII_PX:
-        near = _bays_at(rgb, near, search, radius)
+        if dist is None:
+            dist = cv2.distanceTransform((near | ~search).view(np.uint8), cv2.DIST_L2, 5)
+        out = _bays_at(rgb, near, search, radius, dist)
+        if out is not near:  # bays taken out: the next opening measures from the background they leave
+            near, dist = out, None
     return near
 
 
-def _bays_at(rgb: np.ndarray, near: np.ndarray, search: np.ndarray, r: int) -> np.ndarray:
-    """`_bays_continued`'s change of `near` at one radius `r` (px) of the opening disc."""
-    inner = cv2.distanceTransform((near | ~search).view(np.uint8), cv2.DIST_L2, 5) > r
+def _bays_at(rgb: np.ndarray, near: np.ndarray, search: np.ndarray, r: int, dist: np.ndarray) -> np.ndarray:
+    """`_bays_continued`'s change of `near` at one radius `r` (px) of the opening disc (`near` itself where no bay
+    is taken out), `dist` being the distance transform of `near` or outside the mirror."""
+    inner = dist > r
     opened = cv2.distanceTransform((~inner).view(np.uint8), cv2.DIST_L2, 5) <= r
     bays = near & ~opened
     n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(bays.view(np.uint8), connectivity=4)
