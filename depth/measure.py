@@ -2326,7 +2326,7 @@ def _along_side(levels: np.ndarray) -> np.ndarray:
 
 
 def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25, colour_half_width=None,
-                  compressed=False):
+                  compressed=False, chroma_reach=None):
     """Signed distance along the normal from each point to the edge, and the contrast.
 
     The linear-RGB profile c(s), s ∈ [−L, L], is projected on the direction
@@ -2340,7 +2340,10 @@ def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25, 
     measured on colour over ±`colour_half_width` (default: `half_width`), wide enough for a JPEG
     image's chroma, stored at half resolution and spread over about four pixels by the decoder
     (`JPEG_CHROMA_REACH_PX`). `compressed`: colour from a JPEG image (its ringing is not clipped,
-    see `_OVERSHOOT`). Returns the offsets, the contrasts and each point's profile half-width.
+    see `_OVERSHOOT`). `chroma_reach` (with luma): the points the luma does not place (no luma edge,
+    or a luma whose coverage has no inverse, `_luma_invertible`) are read on the encoded colour's area
+    over ±`chroma_reach` instead, where their luma shows one step there (`_chroma_step_offsets`).
+    Returns the offsets, the contrasts and each point's profile half-width.
     """
     prof = _profiles(linear, points, normals, half_width, step)  # (N, K, 3) or, with luma, (N, K, 4)
     luma = prof[..., 3] if prof.shape[-1] == 4 else None
@@ -2364,7 +2367,8 @@ def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25, 
         y_in, y_out = _along_side(luma[:, 0]), _along_side(luma[:, -1])
         dy = y_in - y_out
         use_luma = np.abs(dy) >= min_contrast
-        q = np.where(use_luma[:, None], _luma_coverage(luma, y_in, y_out, *ends[1]), q)
+        invertible = _luma_invertible(y_in, y_out, *ends[1])
+        q = np.where(use_luma[:, None], _luma_coverage(luma, y_in, y_out, *ends[1], invertible=invertible), q)
         contrast = np.where(use_luma, np.abs(dy), contrast)
     area = np.sum((q[:, 1:] + q[:, :-1]) * 0.5, axis=1) * step
     if len(q) and luma is None and not compressed:  # (JPEG: its ringing overshoots on both sides, and cancels)
@@ -2381,6 +2385,15 @@ def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25, 
             q = np.sum(wts * np.clip(qp, lo, hi), axis=2)
             area = np.sum((q[:, 1:] + q[:, :-1]) * 0.5, axis=1) * step
     e, reach = area - half_width, np.full(len(area), float(half_width))
+    if luma is not None and chroma_reach is not None:
+        # no luma edge, or one whose luma answers no coverage (`_luma_invertible`: read linearly above)
+        colour = np.flatnonzero(~use_luma | ~invertible[0])
+        flat, e_flat, c_flat = _chroma_step_offsets(linear, points[colour], normals[colour], chroma_reach,
+                                                    min_contrast, step)
+        done = colour[flat]
+        e[done], contrast[done], reach[done] = e_flat, c_flat, chroma_reach
+        use_luma = use_luma.copy()
+        use_luma[done] = True  # placed: not read on the linear colour below
     if luma is not None and colour_half_width is not None and colour_half_width > half_width and not use_luma.all():
         # colour alone: read over a profile that reaches the chroma's levels, which a profile of
         # ±half_width can fall short of (then the edge sits wherever the profile is centred)
@@ -2389,6 +2402,44 @@ def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25, 
                                                        colour_half_width, min_contrast, step, compressed=True)
         reach[colour] = colour_half_width
     return e, contrast, reach
+
+
+def _chroma_step_offsets(linear, points, normals, reach, min_contrast, step=0.25):
+    """Edges of a JPEG image that its luma does not place: (which points (N,) bool, their offsets and contrasts (M,)).
+
+    JPEG stores the chroma Cb, Cr at half resolution (4:2:0), and the decoder's upsampling spreads a chroma
+    step over about four pixels. That acts linearly on the sRGB-encoded values and keeps the area under a
+    profile of any linear function of them (each pixel's value goes to its neighbours whole); the ringing of
+    the DCT's quantisation overshoots on both sides and cancels in it. So the area of the encoded profile is
+    that of the pixels before the coding: whole pixels of the face and of the outside and one pixel the
+    edge cuts, whose encoded value is the encoding of its covered share (`_edge_offsets_encoded` inverts
+    that). Read in linear light over ±1.5 px, the smeared ramp put a side outward: a yellow face whose luma
+    is its grey background's (the reconstruct bench's JPEG s16/0) read 0.2–0.4 px wider on each side and
+    4.2 % off in depth. `linear`: `_edge_image(..., "luma")` of the window, `reach` the profile's
+    half-width (px).
+
+    Only where the luma over the whole profile stays within what a pixel mixing the profile's two ends makes
+    of it (to `min_contrast` / 2; the luma of two colours of one Y' mixed in linear light is not that Y': an
+    orange face before grey, 4 levels of 255 off at an even mix): a face of another brightness within reach
+    (a side face of the face's chroma) makes the area no one step's, and such points keep the other
+    readings."""
+    prof = _profiles(linear, points, normals, reach, step)
+    y = prof[..., 3]
+    c_in, c_out = _along_side(prof[:, 0, :3]), _along_side(prof[:, -1, :3])
+    shares = np.linspace(0.0, 1.0, 17)[None, :, None]
+    mixed = srgb_to_linear(_linear_to_srgb(c_out[:, None] + shares * (c_in - c_out)[:, None]) @ _LUMA)
+    tol = 0.5 * min_contrast
+    flat = (y.min(axis=1) >= mixed.min(axis=1) - tol) & (y.max(axis=1) <= mixed.max(axis=1) + tol)
+    if not flat.any():
+        return flat, np.zeros(0), np.zeros(0)
+    # the encoded colours of the window the profiles (and the one-step look a pixel beyond them) sample
+    h, w = linear.shape[:2]
+    pts = points[flat]
+    lo = np.maximum(np.floor(pts.min(axis=0) - reach - 3.0).astype(int), 0)
+    hi = np.minimum(np.ceil(pts.max(axis=0) + reach + 4.0).astype(int), (w, h))
+    srgb = _linear_to_srgb(linear[lo[1]:hi[1], lo[0]:hi[0], :3])
+    e, contrast, _ = _edge_offsets_encoded(srgb, pts - lo, normals[flat], reach, min_contrast, step)
+    return flat, e, contrast
 
 
 _LUMA_BISECTIONS = 8
@@ -2413,7 +2464,7 @@ def _srgb_slope(lin: np.ndarray) -> np.ndarray:
     return np.where(lin <= 0.0031308, 12.92, (1.055 / 2.4) * np.maximum(lin, 0.0031308) ** (1.0 / 2.4 - 1.0))
 
 
-def _luma_coverage(luma, y_in, y_out, c_in, c_out) -> np.ndarray:
+def _luma_coverage(luma, y_in, y_out, c_in, c_out, invertible=None) -> np.ndarray:
     """The share of each sample of a luma profile covered by the inside, (N, K).
 
     `luma` (N, K) is JPEG's luma Y' = 0.299 R' + 0.587 G' + 0.114 B' of the sRGB-encoded colours, taken
@@ -2428,20 +2479,14 @@ def _luma_coverage(luma, y_in, y_out, c_in, c_out) -> np.ndarray:
     Y'(t) the luma of t·c_in + (1 − t)·c_out, by bisection, then Newton's method (the share rises from 0 to
     1). Where the colours do not step as the luma does (their luma step under half the measured one, or of
     the other sign, as where the chroma at the ends is smeared) or their luma rises too unevenly
-    (`_LUMA_MIN_SLOPE`), and beyond the step's ends, the linear reading stays."""
+    (`_LUMA_MIN_SLOPE`), and beyond the step's ends, the linear reading stays. `invertible`: what
+    `_luma_invertible` gives for these ends, where the caller has it already."""
     dy = np.where(y_in != y_out, y_in - y_out, 1.0)
     t = (luma - y_out[:, None]) / dy[:, None]  # the linear reading
     enc_in, enc_out = _linear_to_srgb(y_in), _linear_to_srgb(y_out)
     u = (_linear_to_srgb(luma) - enc_out[:, None]) / np.where(enc_in != enc_out, enc_in - enc_out, 1.0)[:, None]
-    f0, f1 = _linear_to_srgb(c_out) @ _LUMA, _linear_to_srgb(c_in) @ _LUMA
-    df = f1 - f0
-    model = (np.abs(df) >= 0.5 * np.abs(enc_in - enc_out)) & (np.sign(df) == np.sign(enc_in - enc_out)) & (df != 0.0)
+    model, f0, span = _luma_invertible(y_in, y_out, c_in, c_out) if invertible is None else invertible
     d = c_in - c_out
-    span = np.where(model, df, 1.0)[:, None]
-    # the model's slope across the step: where the luma does not rise steadily with the coverage (channels
-    # stepping in opposite ways nearly cancel in it) the inverse is ill-posed, and the linear reading stays
-    grid = c_out[:, None, :] + np.linspace(0.0, 1.0, 9)[None, :, None] * d[:, None, :]
-    model &= np.min((_srgb_slope(grid) * d[:, None, :]) @ _LUMA / span, axis=1) >= _LUMA_MIN_SLOPE
     # within the step only: beyond its ends (JPEG's ringing) the two readings meet at 0 and 1
     inside = model[:, None] & (t > 0.0) & (t < 1.0) & (u > 0.0) & (u < 1.0)
     if not inside.any():
@@ -2462,6 +2507,24 @@ def _luma_coverage(luma, y_in, y_out, c_in, c_out) -> np.ndarray:
     out = t.copy()
     out[rows, cols] = cover
     return out
+
+
+def _luma_invertible(y_in, y_out, c_in, c_out):
+    """Where `_luma_coverage` inverts the luma of a pixel mixing the linear colours `c_in` and `c_out` (N, 3)
+    (the luma's levels `y_in`, `y_out` (N,) at the profile's ends, in linear light): (whether it does (N,),
+    the encoded luma Y' of `c_out`, the model's luma step (N, 1), 1 where it does not). It does where the
+    colours step as the luma does (their Y' step at least half the measured one, of its sign) and their
+    mix's Y' rises steadily with the share (`_LUMA_MIN_SLOPE`; channels stepping in opposite ways nearly
+    cancel in it, and the inverse is then ill-posed)."""
+    enc_in, enc_out = _linear_to_srgb(y_in), _linear_to_srgb(y_out)
+    f0, f1 = _linear_to_srgb(c_out) @ _LUMA, _linear_to_srgb(c_in) @ _LUMA
+    df = f1 - f0
+    model = (np.abs(df) >= 0.5 * np.abs(enc_in - enc_out)) & (np.sign(df) == np.sign(enc_in - enc_out)) & (df != 0.0)
+    d = c_in - c_out
+    span = np.where(model, df, 1.0)[:, None]
+    grid = c_out[:, None, :] + np.linspace(0.0, 1.0, 9)[None, :, None] * d[:, None, :]
+    model &= np.min((_srgb_slope(grid) * d[:, None, :]) @ _LUMA / span, axis=1) >= _LUMA_MIN_SLOPE
+    return model, f0, span
 
 
 _ONE_PHASE = 0.9
@@ -2604,7 +2667,7 @@ def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing, en
     lines, quads, corners = model[:3]
     pts, nrm = _side_samples(lines, quads, corners, margin, spacing)
     h, w = linear.shape[:2]
-    colour_reach = [None] * 4
+    colour_reach = chroma_reach = [None] * 4
     if linear.shape[-1] == 4:
         # JPEG (luma): the top and bottom sides' colour-only points read over the chroma's reach, within
         # half the face's height. Not the left and right sides: there a side face of the front face's
@@ -2614,6 +2677,10 @@ def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing, en
         height = (np.linalg.norm(c[3] - c[0]) + np.linalg.norm(c[2] - c[1])) / 2.0
         reach = float(np.clip(0.5 * height, half_width, JPEG_CHROMA_REACH_PX))
         colour_reach = [None, None, reach, reach]
+        # every side's points that the luma does not place, on the encoded area where their profile over the
+        # chroma's reach is one step (`_chroma_step_offsets`): the left and right sides' too, as no side face
+        # of another brightness then lies within that reach
+        chroma_reach = [JPEG_CHROMA_REACH_PX, JPEG_CHROMA_REACH_PX, reach, reach]
     out = {}  # per side: (fit, edge points, normals, residuals, rms, contrast)
     for i in ([0, 1, 3, 2] if follower == 2 else [0, 1, 2, 3]):  # a follower after the side it follows
         p, n = pts[i], nrm[i]
@@ -2639,7 +2706,8 @@ def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing, en
         if encoded is not None:  # blurred after encoding: the encoded area where the side is one step
             e, c, one_step = _edge_offsets_encoded(encoded, p, n, half_width, min_contrast)
         if one_step is None or one_step.mean() < _ONE_STEP_SHARE:
-            e, c, reach = _edge_offsets(linear, p, n, half_width, min_contrast, colour_half_width=colour_reach[i])
+            e, c, reach = _edge_offsets(linear, p, n, half_width, min_contrast, colour_half_width=colour_reach[i],
+                                        chroma_reach=chroma_reach[i])
         else:
             reach = np.full(len(e), float(half_width))
         good = (c >= min_contrast) & (np.abs(e) <= reach - 0.5)
