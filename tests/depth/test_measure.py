@@ -1522,7 +1522,7 @@ def test_a_chroma_step_with_another_brightness_within_reach_is_not_read_on_its_a
     """`_chroma_step_offsets` reads a side on the encoded area only where the luma over the profile is what a
     pixel mixing its two ends makes: beside a face of its chroma but darker (a side face 2 px wide, within the
     chroma's reach), the area holds a third level and places no edge, and the side is left to the other
-    readings; the other side of the same face, one step, is read."""
+    readings; the other side of the same face, one step, is read. A step of too little contrast is not."""
     from depth.measure import JPEG_CHROMA_REACH_PX, _chroma_step_offsets, _edge_image
     face8, background8 = (232, 235, 85), (217, 217, 217)
     image, _ = _coloured_rectangle(face8, background8, 30.4, 53.77, 20.3, 75.6)
@@ -1537,6 +1537,12 @@ def test_a_chroma_step_with_another_brightness_within_reach_is_not_read_on_its_a
     flat_right, e, _ = _chroma_step_offsets(linear, right, normal, JPEG_CHROMA_REACH_PX, 0.02)
     assert not flat_left.any()
     assert flat_right.all() and np.allclose(53.0 + e, 53.77 - 0.5, atol=0.02)
+    # a step under twice the contrast step (a purple face before its own side face, 11 levels of 255 darker in
+    # red: the reconstruct bench's JPEG s19/2) is one step too, but its area over ±3 px gathers more noise than
+    # edge: it is left to the narrower reading
+    weak, _ = _coloured_rectangle((137, 55, 155), (126, 50, 144), 30.4, 53.77, 20.3, 75.6)
+    taken, e, _ = _chroma_step_offsets(_edge_image(weak, "luma"), right, normal, JPEG_CHROMA_REACH_PX, 0.02)
+    assert not taken.any() and e.size == 0
 
 
 @pytest.mark.parametrize("left", [60.3, 63.6])
