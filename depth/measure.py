@@ -2388,12 +2388,12 @@ def _edge_offsets(linear, points, normals, half_width, min_contrast, step=0.25, 
     if luma is not None and chroma_reach is not None:
         # no luma edge, or one whose luma answers no coverage (`_luma_invertible`: read linearly above)
         colour = np.flatnonzero(~use_luma | ~invertible[0])
-        flat, e_flat, c_flat = _chroma_step_offsets(linear, points[colour], normals[colour], chroma_reach,
-                                                    min_contrast, step)
-        done = colour[flat]
-        e[done], contrast[done], reach[done] = e_flat, c_flat, chroma_reach
-        use_luma = use_luma.copy()
-        use_luma[done] = True  # placed: not read on the linear colour below
+        if colour.size:
+            flat, e_flat, c_flat = _chroma_step_offsets(linear, points[colour], normals[colour], chroma_reach,
+                                                        min_contrast, step)
+            done = colour[flat]
+            e[done], contrast[done], reach[done] = e_flat, c_flat, chroma_reach
+            use_luma[done] = True  # placed: not read on the linear colour below
     if luma is not None and colour_half_width is not None and colour_half_width > half_width and not use_luma.all():
         # colour alone: read over a profile that reaches the chroma's levels, which a profile of
         # ±half_width can fall short of (then the edge sits wherever the profile is centred)
@@ -2676,7 +2676,7 @@ def _refine(linear, model, half_width, margin, min_contrast, min_lr, spacing, en
     lines, quads, corners = model[:3]
     pts, nrm = _side_samples(lines, quads, corners, margin, spacing)
     h, w = linear.shape[:2]
-    colour_reach = chroma_reach = [None] * 4
+    colour_reach, chroma_reach = [None] * 4, [None] * 4
     if linear.shape[-1] == 4:
         # JPEG (luma): the top and bottom sides' colour-only points read over the chroma's reach, within
         # half the face's height. Not the left and right sides: there a side face of the front face's

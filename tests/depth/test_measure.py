@@ -1384,11 +1384,16 @@ def test_luma_outlines_jpeg_faces_better_than_colour(background):
         assert errors["luma"].max() <= 0.4 and errors["luma"].max() < 0.5 * errors["colour"].max()
 
 
-def test_luma_falls_back_to_colour_where_luma_shows_no_edge():
+def _no_chroma_steps(linear, points, *args):
+    """`_chroma_step_offsets` taking no point: the readings it stands before (the colour's linear area)."""
+    return np.zeros(len(points), dtype=bool), np.zeros(0), np.zeros(0)
+
+
+def test_luma_falls_back_to_colour_where_luma_shows_no_edge(monkeypatch):
     """A face with its background's luma: every edge point is placed on the colour profile (the left and right
     sides' on the encoded colour's area over `JPEG_CHROMA_REACH_PX`, `_chroma_step_offsets`; on this image,
     which no JPEG coder smeared, that reading and the linear one agree with each other to 0.005 px and with
-    the truth to 0.03 px)."""
+    the truth to 0.03 px). Where that reading takes no point, the outline is the colour one to 1e-6 px."""
     grey = 0.35  # make_image's plain background (linear)
     y_grey = linear_to_srgb(np.array(grey))
     # a red and a blue-green sRGB colour with exactly the background's luma Y'
@@ -1406,6 +1411,11 @@ def test_luma_falls_back_to_colour_where_luma_shows_no_edge():
     # and right on the encoded colour's area, each exact on a sharp edge
     assert luma and np.abs(luma.corners_px - colour.corners_px).max() < 0.005
     assert corner_errors(luma, face).max() <= 0.03
+    import depth.measure
+    monkeypatch.setattr(depth.measure, "_chroma_step_offsets", _no_chroma_steps)
+    fallback = face_outline(image, mask, channels="luma")
+    # the top and bottom read over a longer profile move the corners by 1e-7 px
+    assert fallback and np.abs(fallback.corners_px - colour.corners_px).max() < 1e-6
     with pytest.raises(DepthError, match="channels: expected one of colour, luma"):
         face_outline(image, mask, channels="rgb")
 
@@ -1547,7 +1557,7 @@ def test_a_chroma_step_with_another_brightness_within_reach_is_not_read_on_its_a
 
 @pytest.mark.parametrize("left", [60.3, 63.6])
 @pytest.mark.parametrize("mask_low_px", [0, 1, 2, 3])
-def test_a_jpeg_face_whose_bottom_shows_no_luma_edge_is_outlined_on_its_chroma(left, mask_low_px):
+def test_a_jpeg_face_whose_bottom_shows_no_luma_edge_is_outlined_on_its_chroma(left, mask_low_px, monkeypatch):
     """Below the face, a background of the face's luma (a dark floor tile under a purple cube: the
     reconstruct bench's JPEG s18/0 and s14/2), so only the chroma shows the bottom edge, and JPEG
     stores it at half resolution, spread over about four pixels. Read over ±1.5 px, the bottom sat
@@ -1560,7 +1570,8 @@ def test_a_jpeg_face_whose_bottom_shows_no_luma_edge_is_outlined_on_its_chroma(l
     corners lay 0.3–1.2 px off, the sides above the tile 0.25 px out, and the bottom corners 0.3–0.65 px,
     under a bound of 0.7 px. Painted by each pixel's share, the top corners lie within 0.2 px, and the bottom
     ones 0.1–0.74 px off with the code before that session's change, 0.1–0.71 px with it, the bottom side
-    0.09–0.21 px and 0.01–0.19 px off in the median.)"""
+    0.09–0.21 px and 0.01–0.19 px off in the median. Where `_chroma_step_offsets` takes no point, the reading
+    it stands before keeps that image's bottom corners within 0.7 px.)"""
     y_grey = linear_to_srgb(np.array(0.35))  # make_image's plain background (linear 0.35)
     purple = np.array([0.7, 0.0, 0.8])
     purple[1] = (y_grey - 0.299 * purple[0] - 0.114 * purple[2]) / 0.587  # sRGB, the background's luma Y'
@@ -1570,13 +1581,15 @@ def test_a_jpeg_face_whose_bottom_shows_no_luma_edge_is_outlined_on_its_chroma(l
     u, v = np.meshgrid(np.arange(140.0), np.arange(200.0))
     mask = pixel_truth(image.shape[:2], face, "face")
     # luma edges elsewhere: the background 0.8 but on a tile under the bottom, each pixel the face's share of
-    # it kept (painting every pixel outside the mask 0.8 erased the faces's share of the pixels its sides cut,
+    # it kept (painting every pixel outside the mask 0.8 erased the face's share of the pixels its sides cut,
     # and moved the sides above the tile by 0.25 px)
+    tile = (v > 120) & (u > 50) & (u < 90)
+    painted_over = image.copy()
+    painted_over[~mask & ~tile] = linear_to_srgb(np.array(0.8))
     linear = srgb_to_linear(image)
     albedo = np.array(face.albedo)
     cover = np.clip((linear[..., 2] - 0.35) / (albedo[2] - 0.35), 0.0, 1.0)[..., None]
-    repaint = ~((v > 120) & (u > 50) & (u < 90))
-    image[repaint] = linear_to_srgb(cover * albedo + (1.0 - cover) * 0.8)[repaint]
+    image[~tile] = linear_to_srgb(cover * albedo + (1.0 - cover) * 0.8)[~tile]
     col = int(left) + 8
     assert np.isclose(image[145, col] @ [0.299, 0.587, 0.114], image[160, col] @ [0.299, 0.587, 0.114],
                       atol=2 / 255)
@@ -1590,6 +1603,11 @@ def test_a_jpeg_face_whose_bottom_shows_no_luma_edge_is_outlined_on_its_chroma(l
     assert abs(np.median(bottom[:, 1] - true_v)) <= 0.2
     errors = corner_errors(o, face)
     assert errors[:2].max() <= 0.25 and errors[2:].max() <= 0.75, errors
+    import depth.measure
+    monkeypatch.setattr(depth.measure, "_chroma_step_offsets", _no_chroma_steps)
+    o = face_outline(jpeg(painted_over), mask, channels="luma", thin_strips=False)
+    assert o, o
+    assert corner_errors(o, face)[2:].max() <= 0.7
 
 
 def test_despeckled_jpeg_gives_more_faces_outlined_within_half_a_pixel():
