@@ -1470,12 +1470,6 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             result = after = fit()
             r_after = resid(result[0])[:len(sid)] if result is not None else None
             rms_after = _rms(r_after) if result is not None else np.inf
-            # The merged reading puts the merged side on the far edge of the face it merges: where it misfits the
-            # edges beyond the unmerged reading, and that side's own points most of all, the edges refute it
-            # unless the silhouette refutes the unmerged pose outright (`MERGED_SIDE_WORSE_NOISE`).
-            noise = meas.edge_noise_px
-            merged_refuted = result is not None and rms_after - rms_before > MERGED_WORSE_NOISE * noise and any(
-                _rms(r_after[sid == k]) - _rms(r_before[sid == k]) > MERGED_SIDE_WORSE_NOISE * noise for k in tops)
             keep = rms_after <= rms_before
             # The silhouette decides only between readings the edges do not tell apart: one whose misfit
             # exceeds the other's by more than a whole side's offset (`FaceMeasurement.edge_bias_px`), or
@@ -1498,9 +1492,15 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
                 # 255 darker than the floor behind it and no part of the blob, had the merged reading chosen,
                 # 17.5 % off (0.201 against the unmerged reading's 0.156 px; holdout 6060 all grey s2/1)
                 gross = [off(cube, whole_faces=True) for cube in cubes]
-                merged_refuted = merged_refuted and gross[0] <= SILHOUETTE_MAX_SHARE * meas.blob_mask.sum()
-                if not refuted and abs(gross[0] - gross[1]) >= SILHOUETTE_MARGIN_PX \
-                        and not (gross[1] < gross[0] and merged_refuted):
+                # The merged reading puts the merged side on the far edge of the face it merges: where it misfits
+                # the edges beyond the unmerged reading, and that side's own points most of all, the edges refute it
+                # unless the silhouette refutes the unmerged pose outright (`MERGED_SIDE_WORSE_NOISE`).
+                noise = meas.edge_noise_px
+                merged_refuted = (gross[1] < gross[0] <= SILHOUETTE_MAX_SHARE * meas.blob_mask.sum()
+                                  and rms_after - rms_before > MERGED_WORSE_NOISE * noise
+                                  and any(_rms(r_after[sid == k]) - _rms(r_before[sid == k])
+                                          > MERGED_SIDE_WORSE_NOISE * noise for k in tops))
+                if not refuted and abs(gross[0] - gross[1]) >= SILHOUETTE_MARGIN_PX and not merged_refuted:
                     by_edges = keep
                     keep = gross[1] < gross[0]
                     if keep != by_edges:
