@@ -312,6 +312,18 @@ white or black object on a background of no one colour (`_enclosed`): a step of 
 reflected in a cylinder, ramps up to 0.02 per px) stays below the strong one."""
 
 
+COMPRESSED_BLUE_RED_STEPS = 0.55
+"""Fraction of `ENCLOSING_EDGE_CONTRAST`'s steps at which a compressed image's grey search traces the edges of
+blue − red, after the brightness edges, for objects these did not enclose (`_achromatic_regions`'
+`blue_red_after`). JPEG keeps blue − red, mostly chroma, at half resolution (4:2:0): a step there spreads over
+about twice the pixels, and its gradient after `_enclosed`'s blur falls to 0.54–0.80 of the uncompressed one
+(OpenCV's coder at quality 90, a white face bluer than a warm sky, any phase, at 0°, 30° and 90°); at 0.55 of
+the steps the edges that enclose such a face uncompressed enclose it after JPEG too. Traced in one search with
+the brightness edges (the eighty-second session, at the full steps), they cut faces those edges had found whole
+(holdout 6060 all grey JPEG s2/3 5.1 → 38.6 % off) and lost one (9090 JPEG s7/1); traced after them, they
+change no region found before."""
+
+
 ENCLOSING_CLUTTER = 0.1
 """Largest share of edge pixels 3–8 px around a region enclosed by edges for it to be an object: the
 grey cubes of the lighting bench's floor scenes and of its holdout renders have 0–0.03 there, the
@@ -710,7 +722,8 @@ def convex_filled(image: np.ndarray, mirror_mask: np.ndarray, detection: CubeDet
 
 def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_share: float,
               contrast: tuple[float, float] = ENCLOSING_EDGE_CONTRAST, close_px: int = 3, sigma: float = 1.0,
-              gradient: tuple[np.ndarray, ...] | None = None, bays: bool = False, blue_red: bool = False):
+              gradient: tuple[np.ndarray, ...] | None = None, bays: bool = False, blue_red: bool = False,
+              blue_red_steps: float = 1.0):
     """(background pixels, seed pixels, edge pixels) of a background of no one colour, else None.
 
     A sky reflected in a cylinder shades smoothly across the mirror and meets the floor at a
@@ -734,7 +747,7 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
     weak, strong = (3.2 * 255.0 * c for c in contrast)
     edges = _bridged_canny(dx, dy, weak, strong)
     if blue_red:
-        edges |= _bridged_canny(*blue_minus_red, weak, strong)
+        edges |= _bridged_canny(*blue_minus_red, weak * blue_red_steps, strong * blue_red_steps)
     square = np.ones((close_px, close_px), np.uint8)
     free = search & ~cv2.dilate((edges & search).astype(np.uint8), square).astype(bool)
     near = _reaching_rim(free, search, 4)
@@ -829,7 +842,8 @@ def _nearest_means(img: np.ndarray, mask: np.ndarray, where: np.ndarray) -> np.n
 
 
 def _achromatic_regions(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarray, min_area: int,
-                        background_share: float = 0.5, ring_share: float = 0.9, blue_red: bool = False) -> list:
+                        background_share: float = 0.5, ring_share: float = 0.9, blue_red: bool = False,
+                        blue_red_after: float = 0.0) -> list:
     """Grey, white or black objects: regions that are not background, each as (local mask,
     (row, col) offset), in the window of its bounding box.
 
@@ -842,6 +856,9 @@ def _achromatic_regions(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarra
     region is also one only where the pixels 3–8 px around it are under `ENCLOSING_CLUTTER` edges.
     Regions within 3 px of a coloured blob are left out: there they are a coloured cube's dark or
     washed-out face, not another object. `blue_red`: the edges of blue − red are edges too (`_enclosed`).
+    `blue_red_after` > 0 (a compressed image, `COMPRESSED_BLUE_RED_STEPS`): after the regions that the brightness
+    edges enclose, those that the edges of blue − red, at that fraction of `_enclosed`'s steps, enclose besides,
+    where they lie over 3 px from every region found first: those edges add objects and change none.
     """
     rest = search & ~coloured
     if int(rest.sum()) < min_area:
@@ -849,13 +866,28 @@ def _achromatic_regions(rgb: np.ndarray, search: np.ndarray, coloured: np.ndarra
     found = _uniform_background(rgb, search, rest, min_area, background_share)
     if found is None or found is _SHADES:
         shades = found is _SHADES
-        found = _enclosed(rgb, search, rest, background_share, bays=True, blue_red=blue_red)
+        gradient = _channel_gradient(rgb, 1.0, blue_red=True) if blue_red or blue_red_after > 0 else None
+        found = _enclosed(rgb, search, rest, background_share, gradient=gradient, bays=True, blue_red=blue_red)
         if found is None and shades:  # no edges enclose regions there: the one colour, shading and all
             found = _uniform_background(rgb, search, rest, min_area, background_share, allow_shading=True)
+        elif blue_red_after > 0:
+            regions = [] if found is None else _regions_of(search, coloured, found, ring_share)
+            taken = coloured.copy()
+            for piece, (y, x) in regions:
+                taken[y : y + piece.shape[0], x : x + piece.shape[1]] |= piece
+            more = _enclosed(rgb, search, rest, background_share, gradient=gradient, bays=True, blue_red=True,
+                             blue_red_steps=blue_red_after)
+            return regions + ([] if more is None else _regions_of(search, taken, more, ring_share))
     if found is None:
         return []
+    return _regions_of(search, coloured, found, ring_share)
+
+
+def _regions_of(search: np.ndarray, coloured: np.ndarray, found: tuple, ring_share: float) -> list:
+    """`_achromatic_regions`' objects, over 3 px from the pixels `coloured`, of the background `found`
+    (background pixels, seed pixels, edge pixels or None)."""
     near, seeds, edges = found
-    weak = rest & ~near
+    weak = search & ~coloured & ~near
     n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(weak.astype(np.uint8), connectivity=8)
     # A region holding no 5 × 5 block is a line: pixels mixing two background colours along a
     # horizon, or the edge between two background regions. It is taken for background.
@@ -1162,7 +1194,8 @@ def detect_cubes(
         (`_stepped_span`). In an uncompressed image such a line is a fold between two faces lit alike
         (a grey cube's front and side faces under the sky alone) and splits them. Only in an uncompressed image
         does the grey search trace the edges of blue − red besides (`_enclosed`'s `blue_red`): JPEG keeps blue − red
-        at half resolution.
+        at half resolution, and a compressed image's grey search traces them after the brightness edges, at
+        `COMPRESSED_BLUE_RED_STEPS`, only to add objects (`_achromatic_regions`' `blue_red_after`).
     coloured_found : callable(list of CubeDetection), optional
         Called with the coloured cubes' detections (in the order of the result) as soon as they are found,
         before the search for grey, white and black ones, which takes most of the time (0.5 s of a
@@ -1270,7 +1303,8 @@ def detect_cubes(
         coloured_found(coloured)
     # Grey, white or black objects (found only on a uniform background): one blob each.
     grey = []
-    for piece, (y, x) in _achromatic_regions(rgb, search, candidates, min_area, blue_red=not compressed):
+    for piece, (y, x) in _achromatic_regions(rgb, search, candidates, min_area, blue_red=not compressed,
+                                             blue_red_after=COMPRESSED_BLUE_RED_STEPS if compressed else 0.0):
         fragments[y : y + piece.shape[0], x : x + piece.shape[1]][piece] = next_id
         next_id += 1
         if piece.sum() >= min_area:

@@ -434,19 +434,99 @@ def test_a_white_face_lit_bluer_than_a_warm_sky_is_found_by_its_blue_yellow_edge
     assert iou > 0.9
 
 
-def test_a_compressed_image_has_no_edges_of_blue_minus_red_traced():
-    """The face of the test above (seed 2, found whole there) in an image taken as compressed: JPEG keeps blue −
-    red at half resolution and rings in it, so the grey search traces brightness edges alone there, and the
-    face, under the strong step in every channel, is not found. On the holdout JPEG runs, those edges (traced in
-    the grey search and in `faint_regrowth` alike) lost 9090 JPEG s7/1 and put 6060 all grey JPEG s2/3 38.6 %
-    off at +4.3 σ (5.1 % without)."""
+def jpeg_coded(image):
+    """`image` (sRGB in [0, 1], 8-bit values) through OpenCV's JPEG coder at quality 90, 4:2:0 (the benches' JPEG
+    variant), then median-filtered as `reconstruct` does before detecting cubes in a compressed image."""
+    import cv2
+
+    from depth.reconstruct import despeckled
+
+    ok, data = cv2.imencode(".jpg", np.round(image * 255.0).astype(np.uint8)[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 90])
+    assert ok
+    return despeckled(cv2.imdecode(data, cv2.IMREAD_COLOR)[..., ::-1])
+
+
+def test_a_compressed_image_traces_the_edges_of_blue_minus_red_only_after_the_brightness_edges(monkeypatch):
+    """The face of the test above (seed 2, found whole there) through OpenCV's JPEG coder: the grey search first
+    traces brightness edges alone, under whose strong step the face lies in every channel, and then the edges of
+    blue − red at `COMPRESSED_BLUE_RED_STEPS` of the steps (JPEG keeps blue − red at half resolution), which find
+    it (the front face within IoU 0.85 of the truth; 0.87 here). Without that second search, or with it at the
+    uncompressed steps, nothing is found."""
+    import depth.measure as dm
+
     cube = FakeCube((100.3, 40.6), (124.8, 41.4), (125.5, 150.2), (101.1, 149.1), top_sag=1.5, bottom_sag=2.0,
                     albedo=(0.8375, 0.8505, 0.907), front_shade=0.56, side=None)
     image, mirror = make_image((200, 240), [cube], background="warm ramp", noise=2 / 255, seed=2)
     face = pixel_truth(image.shape[:2], cube, "face")
-    image = path_traced_noise(image, face, 0.013, 2)
-    assert len(detect_cubes(image, mirror)) == 1  # precondition: found in the image taken as uncompressed
-    assert detect_cubes(image, mirror, compressed=True) == []
+    image = jpeg_coded(path_traced_noise(image, face, 0.013, 2))
+    (found,) = detect_cubes(image, mirror, compressed=True)
+    assert found.usable and found.achromatic, found.reason
+    assert (found.front_face_mask & face).sum() / (found.front_face_mask | face).sum() > 0.85
+    for steps in (0.0, 1.0):
+        monkeypatch.setattr(dm, "COMPRESSED_BLUE_RED_STEPS", steps)
+        assert detect_cubes(image, mirror, compressed=True) == []
+
+
+def test_the_edges_of_blue_minus_red_in_a_compressed_image_change_no_region_the_brightness_edges_enclose(monkeypatch):
+    """A grey cube on a warm sky, its left side face 12 px wide as bright as the sky but bluer (red down 0.04,
+    blue up 0.06), through OpenCV's JPEG coder. Traced in one search with the brightness edges, the edges of
+    blue − red would join the side face to the front face's region (5072 px against 3819). Traced after them
+    (`blue_red_after`), they add only regions over 3 px from those found first: the grey search returns the
+    regions of the brightness edges alone, to the pixel, and the detection is the same."""
+    import cv2
+
+    import depth.measure as dm
+    from depth.measure import COMPRESSED_BLUE_RED_STEPS, _achromatic_regions
+
+    cube = FakeCube((90.3, 40.6), (124.8, 41.4), (125.5, 150.2), (91.1, 149.1), top_sag=1.5, bottom_sag=2.0,
+                    albedo=(0.5, 0.5, 0.5), front_shade=0.4, side="left", side_width=12.0, side_shade=0.4)
+    image, mirror = make_image((200, 240), [cube], background="warm ramp")
+    plain, _ = make_image((200, 240), [], background="warm ramp")
+    side = pixel_truth(image.shape[:2], cube, "strip")
+    image[side] = plain[side] + [-0.04, 0.0, 0.06]
+    image = jpeg_coded(image)
+    search = cv2.erode(mirror.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    none = np.zeros_like(search)
+
+    def masks(regions):
+        return [(off, piece.shape, np.flatnonzero(piece).tolist()) for piece, off in regions]
+
+    alone = _achromatic_regions(image, search, none, 50)
+    (front,) = alone
+    (joined,) = _achromatic_regions(image, search, none, 50, blue_red=True)  # the case: one search would join them
+    assert joined[0].sum() > front[0].sum() + 0.9 * side.sum()
+    assert masks(_achromatic_regions(image, search, none, 50, blue_red_after=COMPRESSED_BLUE_RED_STEPS)) == masks(alone)
+    (found,) = detect_cubes(image, mirror, compressed=True)
+    monkeypatch.setattr(dm, "COMPRESSED_BLUE_RED_STEPS", 0.0)  # no second search
+    (before,) = detect_cubes(image, mirror, compressed=True)
+    assert np.array_equal(found.mask, before.mask) and np.array_equal(found.front_face_mask, before.front_face_mask)
+
+
+@pytest.mark.parametrize("row", [40, 41])
+@pytest.mark.parametrize("column", [84, 85, 86, 87])
+def test_a_face_that_steps_in_blue_minus_red_alone_is_enclosed_after_jpeg_at_the_compressed_steps(row, column):
+    """The face of `test_a_face_that_steps_in_blue_minus_red_alone_is_enclosed_only_with_those_edges` (blue − red
+    up 0.065, over the strong step) through OpenCV's JPEG coder, at each phase of its 2 × 2 chroma blocks (4:2:0):
+    the step spreads over about twice the pixels, and the edges of blue − red at the uncompressed steps no longer
+    enclose it at any phase; at `COMPRESSED_BLUE_RED_STEPS` of them they do at every phase (the background
+    leaves at least 95 % of its inside). At 0.7 of them they would not where it starts on an odd row."""
+    import cv2
+
+    from depth.measure import COMPRESSED_BLUE_RED_STEPS, _enclosed
+
+    h, w = 160, 200
+    yy, xx = np.mgrid[0:h, 0:w]
+    rgb = np.stack([0.80 + 0.10 * xx / w, 0.78 + 0.10 * xx / w, 0.70 + 0.10 * xx / w], axis=-1)
+    face = (yy >= row) & (yy < row + 80) & (xx >= column) & (xx < column + 30)
+    rgb[face] += [-0.025, 0.0, 0.04]
+    rgb = jpeg_coded(np.round(rgb * 255.0) / 255.0)
+    search = np.zeros((h, w), dtype=bool)
+    search[2:-2, 2:-2] = True
+    inside = cv2.erode(face.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
+    background, _, _ = _enclosed(rgb, search, search, 0.5, blue_red=True)
+    assert np.mean(background[inside]) == 1.0
+    background, _, _ = _enclosed(rgb, search, search, 0.5, blue_red=True, blue_red_steps=COMPRESSED_BLUE_RED_STEPS)
+    assert np.mean(background[inside]) <= 0.05
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
