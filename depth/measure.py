@@ -742,7 +742,9 @@ def _enclosed(rgb: np.ndarray, search: np.ndarray, rest: np.ndarray, background_
     every channel (0.028–0.045 of sRGB), but by 0.047–0.060 in blue − red, where a path tracer's brightness noise
     cancels (the median gradient over the mirror about 3 times lower). A JPEG image keeps blue − red, mostly
     chroma, at half resolution (4:2:0) and rings in it: traced there (in the grey search and in `faint_regrowth`),
-    they lost 9090 JPEG s7/1 and put holdout 6060 all grey JPEG s2/3 5.1 → 38.6 % off at +4.3 σ."""
+    they lost 9090 JPEG s7/1 and put holdout 6060 all grey JPEG s2/3 5.1 → 38.6 % off at +4.3 σ; a compressed
+    image's grey search traces them in a second search alone (`_achromatic_regions`' `blue_red_after`), at
+    `blue_red_steps` (`COMPRESSED_BLUE_RED_STEPS`) of `contrast`'s steps."""
     dx, dy, *blue_minus_red = _channel_gradient(rgb, sigma, blue_red) if gradient is None else gradient
     weak, strong = (3.2 * 255.0 * c for c in contrast)
     edges = _bridged_canny(dx, dy, weak, strong)
