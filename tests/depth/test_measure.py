@@ -451,20 +451,25 @@ def test_a_compressed_image_traces_the_edges_of_blue_minus_red_only_after_the_br
     traces brightness edges alone, under whose strong step the face lies in every channel, and then the edges of
     blue − red at `COMPRESSED_BLUE_RED_STEPS` of the steps (JPEG keeps blue − red at half resolution), which find
     it (the front face within IoU 0.85 of the truth; 0.87 here). Without that second search, or with it at the
-    uncompressed steps, nothing is found."""
+    uncompressed steps, nothing is found; without it, nothing in the image before JPEG taken as compressed either
+    (as before the eighty-sixth session, when compressed images traced no edges of blue − red)."""
     import depth.measure as dm
 
     cube = FakeCube((100.3, 40.6), (124.8, 41.4), (125.5, 150.2), (101.1, 149.1), top_sag=1.5, bottom_sag=2.0,
                     albedo=(0.8375, 0.8505, 0.907), front_shade=0.56, side=None)
     image, mirror = make_image((200, 240), [cube], background="warm ramp", noise=2 / 255, seed=2)
     face = pixel_truth(image.shape[:2], cube, "face")
-    image = jpeg_coded(path_traced_noise(image, face, 0.013, 2))
+    plain = path_traced_noise(image, face, 0.013, 2)
+    assert len(detect_cubes(plain, mirror)) == 1  # precondition: found in the image taken as uncompressed
+    image = jpeg_coded(plain)
     (found,) = detect_cubes(image, mirror, compressed=True)
     assert found.usable and found.achromatic, found.reason
     assert (found.front_face_mask & face).sum() / (found.front_face_mask | face).sum() > 0.85
     for steps in (0.0, 1.0):
         monkeypatch.setattr(dm, "COMPRESSED_BLUE_RED_STEPS", steps)
         assert detect_cubes(image, mirror, compressed=True) == []
+        if steps == 0.0:  # the brightness edges alone: nothing, in the image uncompressed but taken as compressed too
+            assert detect_cubes(plain, mirror, compressed=True) == []
 
 
 def test_the_edges_of_blue_minus_red_in_a_compressed_image_change_no_region_the_brightness_edges_enclose(monkeypatch):
