@@ -3,7 +3,7 @@
 Cases: 20 seeded scenes rendered by our renderer (`catadioptric.simulate`, 16 spp as the Mitsuba renders) in four
 variants (clean, Gaussian noise σ = 2/255, Gaussian blur σ = 0.7 px, JPEG quality 90), plus 3
 scenes rendered by Mitsuba 3 with other lighting. For each estimator (exact, ddar, dds,
-shape_prior) and variant it reports detection recall and false positives (matched one-to-one by
+shape_prior, exact_shape_prior) and variant it reports detection recall and false positives (matched one-to-one by
 the image position of the truth front-face corners), the median/max relative centre error
 ‖ĉ − c‖ / (distance from c to the mirror axis) for cubes facing the axis and for turned cubes,
 the median/max size error, and the time per image. It also scores each estimator on *oracle*
@@ -27,7 +27,10 @@ import numpy as np
 from bench.scenes import make_scenes, scene_hash
 from depth.workers import available_cores
 
-METHODS = ("exact", "ddar", "dds", "shape_prior")
+METHODS = ("exact", "ddar", "dds", "shape_prior", "exact_shape_prior")
+SAME_SIZE_METHODS = ("shape_prior", "exact_shape_prior")
+"""The methods that take the cubes to be of one size: scored on the scenes whose cubes are (`Scene.same_size`);
+`exact_shape_prior` is run on those alone."""
 VARIANTS = ("clean", "noise", "blur", "jpeg")
 N_SCENES, N_MITSUBA, SEED, MITSUBA_SEED = 20, 3, 5, 105
 QUICK_SCENES, QUICK_MITSUBA = 5, 1
@@ -166,9 +169,10 @@ def oracle_measurements(camera, mirror, truth: list, per_side: int = 80):
     return out
 
 
-def oracle_errors(camera, mirror, truth: list) -> dict:
-    """Per method, per truth cube: centre and size error from oracle outlines (model error only)."""
-    from depth.estimate import estimate_face, estimate_faces_shape_prior
+def oracle_errors(camera, mirror, truth: list, same_size: bool = True) -> dict:
+    """Per method, per truth cube: centre and size error from oracle outlines (model error only); `exact_shape_prior`
+    only where the cubes are of one size (`same_size`)."""
+    from depth.estimate import estimate_face, estimate_faces_exact_shape_prior, estimate_faces_shape_prior
     from raytrace.truth import mirror_rays
 
     def rays(px):
@@ -178,7 +182,10 @@ def oracle_errors(camera, mirror, truth: list) -> dict:
     meas = oracle_measurements(camera, mirror, truth)
     out = {}
     for method in METHODS:
+        if method == "exact_shape_prior" and not same_size:
+            continue
         ests = (estimate_faces_shape_prior(rays, meas) if method == "shape_prior"
+                else estimate_faces_exact_shape_prior(rays, meas, up=mirror.axis) if method == "exact_shape_prior"
                 else [estimate_face(rays, m, method=method) for m in meas])
         rows = []
         for e, t in zip(ests, truth):
@@ -258,6 +265,8 @@ def run(quick: bool = False, log=print) -> dict:
             img = variant(base, vname if renderer == "ours" else "clean", seed=int(sc.key[:8], 16))
             memo = _RayMapMemo()
             for method in METHODS:
+                if method == "exact_shape_prior" and not sc.same_size:
+                    continue
                 # Timed = the untouched pipeline: the default `exact` on every clean/Mitsuba image, and
                 # every method on 2048x1536 ones. The rest reuse the setup's ray map (same results).
                 timed = vname in ("clean", "mitsuba") and (method == "exact" or setup.camera.resolution[0] == 2048)
@@ -293,7 +302,7 @@ def run(quick: bool = False, log=print) -> dict:
                                 "refused": [r.to_dict() for r in rec.refused], "blur_domain": rec.blur_domain})
         if renderer == "ours":
             oracle.append({"scene": sc.name, "kind": sc.kind, "turns": turns, "same_size": sc.same_size,
-                           "errors": oracle_errors(camera, mirror, truth)})
+                           "errors": oracle_errors(camera, mirror, truth, sc.same_size)})
         log(f"  [{n + 1}/{len(todo)}] {sc.name} {renderer:7s} {sc.kind:6s} {setup.camera.resolution[0]}x"
             f"{setup.camera.resolution[1]} {len(truth)} cubes, image {t_render:.1f} s, elapsed "
             f"{time.perf_counter() - t_start:.0f} s")
@@ -310,7 +319,7 @@ def _stats(values) -> tuple[float, float]:
 
 def summarize(records: list, method: str, variant: str | None = None) -> dict:
     rs = [r for r in records if r["method"] == method and (variant is None or r["variant"] == variant)
-          and (method != "shape_prior" or r["same_size"])]
+          and (method not in SAME_SIZE_METHODS or r["same_size"])]
     cubes = [c for r in rs for c in r["cubes"]]
     found = [c for c in cubes if c["found"]]
     ax = [c["centre_err"] for c in found if c["kind"] == "axis"]
@@ -333,8 +342,8 @@ def report(result: dict, log=print) -> dict:
     variants = [v for v in VARIANTS + ("mitsuba",) if any(r["variant"] == v for r in recs)]
     log("")
     log("centre error = |c_hat - c| / distance(c, axis), in %; size error in %; time: full pipeline, clean/mitsuba images")
-    log("shape_prior is scored on the scenes whose cubes share one size only")
-    log(f"{'method':11s} {'variant':8s} {'found':>9s} {'FP':>3s} | {'axis med':>8s} {'max':>7s} | "
+    log("shape_prior and exact_shape_prior are scored on the scenes whose cubes share one size only")
+    log(f"{'method':17s} {'variant':8s} {'found':>9s} {'FP':>3s} | {'axis med':>8s} {'max':>7s} | "
         f"{'turned med':>10s} {'max':>7s} | {'size med':>8s} {'max':>7s} | {'s/img':>5s}")
     table = {}
     for m in METHODS:
@@ -342,7 +351,7 @@ def report(result: dict, log=print) -> dict:
             s = summarize(recs, m, v)
             table[f"{m}/{v or 'all'}"] = s
             t = f"{s['seconds'][0]:5.2f}" if s["seconds"] else "    —"
-            log(f"{m:11s} {v or 'ALL':8s} {s['found']:4d}/{s['cubes']:<4d} {s['false_positives']:3d} | "
+            log(f"{m:17s} {v or 'ALL':8s} {s['found']:4d}/{s['cubes']:<4d} {s['false_positives']:3d} | "
                 f"{_pct(s['axis'][0])}% {_pct(s['axis'][1])}% | {_pct(s['turned'][0]):>9s}% {_pct(s['turned'][1])}% | "
                 f"{_pct(s['size'][0])}% {_pct(s['size'][1])}% | {t}")
     log("")
@@ -352,7 +361,7 @@ def report(result: dict, log=print) -> dict:
         s = table[f"{m}/all"]
         a, b = s["seconds"] or (np.nan, np.nan)
         c, d = s["seconds_2048"] or (np.nan, np.nan)
-        log(f"  {m:11s} all sizes {a:5.2f} / {b:5.2f}    2048x1536 {c:5.2f} / {d:5.2f}")
+        log(f"  {m:17s} all sizes {a:5.2f} / {b:5.2f}    2048x1536 {c:5.2f} / {d:5.2f}")
     pairs = [(r["seconds_again"], r["seconds_one_process"]) for r in recs if r.get("seconds_one_process")]
     if pairs:
         par, one = np.array(pairs).T
@@ -367,14 +376,15 @@ def report(result: dict, log=print) -> dict:
         parts = []
         for kind in ("axis", "turned"):
             errs = [row.get("centre_err") for o in result["oracle"] if o["kind"] == kind
-                    and (m != "shape_prior" or o["same_size"]) for row in o["errors"][m]]
+                    and (m not in SAME_SIZE_METHODS or o["same_size"]) for row in o["errors"].get(m, [])]
             fails = sum(e is None for e in errs)
             med, mx = _stats(errs)
             oracle_summary[f"{m}/{kind}"] = {"median": med, "max": mx, "failed": fails, "n": len(errs)}
             parts.append(f"{kind} med {_pct(med)} max {_pct(mx)} (failed {fails}/{len(errs)})")
-        sz = [row.get("size_err") for o in result["oracle"] if m != "shape_prior" or o["same_size"] for row in o["errors"][m]]
+        sz = [row.get("size_err") for o in result["oracle"] if m not in SAME_SIZE_METHODS or o["same_size"]
+              for row in o["errors"].get(m, [])]
         parts.append(f"size med {_pct(_stats(sz)[0])} max {_pct(_stats(sz)[1])}")
-        log(f"  {m:11s} " + "; ".join(parts))
+        log(f"  {m:17s} " + "; ".join(parts))
     # Targets.
     log("")
     log("targets (all variants and renderers pooled):")
@@ -477,7 +487,7 @@ def calibration(result: dict, log=print) -> dict:
                 frac = [float(np.mean(z <= k)) if len(z) else np.nan for k in (1, 2, 3)]
                 out[f"{m}/{v or 'all'}/{key}"] = {"within_1_2_3_sigma": frac, "n": int(len(z))}
                 cells.append(" / ".join("  —" if np.isnan(f) else f"{100 * f:3.0f}" for f in frac))
-            log(f"  {m:11s} {v or 'ALL':8s} {cells[0]}  ;  {cells[1]}")
+            log(f"  {m:17s} {v or 'ALL':8s} {cells[0]}  ;  {cells[1]}")
     return out
 
 

@@ -299,7 +299,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--setup", metavar="SETUP.toml")
     r.add_argument("--cube-size", type=float, metavar="S")
     r.add_argument("--method", default=None,
-                   help="exact (default), ddar, dds or shape_prior")
+                   help="exact (default), ddar, dds, shape_prior (the paper's, for cubes of one size) or "
+                        "exact_shape_prior (cubes of one size: each fitted by exact at their common size)")
     r.add_argument("-o", "--output", metavar="OUT.json")
     r.add_argument("--overlay", metavar="OUT.png")
     r.add_argument("--blur-domain", default=None, metavar="D",

@@ -78,6 +78,9 @@ def _run_reconstruction(image_path, setup_path, method, cube_size, progress, blu
         raise CatadioptricError(f"--blur-domain: expected one of auto, {', '.join(BLUR_DOMAINS)}, got {blur_domain!r}")
     if cube_size is not None and not (np.isfinite(cube_size) and cube_size > 0):
         raise CatadioptricError(f"--cube-size: expected a positive edge length in metres, got {cube_size}")
+    if cube_size is not None and method == "exact_shape_prior":
+        raise CatadioptricError("--cube-size: exact_shape_prior estimates the cubes' common size; with a known "
+                                "size use --method exact")
     setup_path = Path(setup_path) if setup_path else default_setup_path(image_path)
     image = reading.result()
     setup = load_setup(setup_path)

@@ -39,7 +39,7 @@ from depth.xslit import XSlit
 from raytrace.scene import Cube
 
 __all__ = ["METHODS", "FaceMeasurement", "CubeEstimate", "FailedEstimate", "estimate_face",
-           "estimate_faces_shape_prior", "expected_work",
+           "estimate_faces_shape_prior", "estimate_faces_exact_shape_prior", "at_common_size", "expected_work",
            "LocalXSlit", "local_xslit"]
 
 SOLVER_MODULES = ("scipy.optimize", "scipy.spatial.transform", "xslit_fit.fit", "xslit_fit.frame")
@@ -1703,6 +1703,42 @@ def estimate_faces_shape_prior(rays: RayFunction, measurements, seed: int = 0) -
         std = {"z": z_std, "size": size_std, "center": float(np.hypot(z_std, size_std / 2)), "scale": scale}
         out[i] = _place(local, kap, float(sol.depths[j]), size, "shape_prior", ext[j, 0] / ext[j, 1], std)
     return out
+
+
+def at_common_size(at, beyond, fused) -> CubeEstimate | FailedEstimate:
+    """One face's `exact_shape_prior` estimate: `at`, its `exact` fit at the common size `fused`
+    (`depth.priors.CommonSize`), with its σ completed by that size's, carried through the fit: `beyond` is the
+    same face fitted at the size plus its σ, and the depth and centre add what that moved them by. Its std's
+    'scale' is the factor the common size's σ was scaled by where the sizes disagree (as `shape_prior`'s). A
+    `FailedEstimate` where either fit failed."""
+    for fit, size in ((at, fused.size), (beyond, fused.size + fused.std)):
+        if not fit:
+            return FailedEstimate("exact_shape_prior", f"at the common size {size * 1e3:.2f} mm: {fit.reason}")
+    std = {**at.std, "z": float(np.hypot(at.std["z"], beyond.z - at.z)), "size": float(fused.std),
+           "center": float(np.hypot(at.std["center"], np.linalg.norm(beyond.center - at.center))),
+           "scale": max(1.0, float(fused.birge_ratio))}
+    return replace(at, method="exact_shape_prior", std=std)
+
+
+def estimate_faces_exact_shape_prior(rays: RayFunction, measurements, up=None, seed: int = 0) -> list:
+    """K ≥ 2 identical cubes of unknown size, solved jointly from the exact rays (beyond the paper).
+
+    Each face is fitted by `exact` alone; their sizes, weighed by their σ, give the common size
+    (`depth.priors.common_size`); each face is fitted by `exact` again at that size (`at_common_size`). A
+    narrow face whose own fit hardly fixes its scale takes it from the others. Returns one estimate per
+    measurement (`FailedEstimate` where a fit fails, or for all where fewer than 2 sizes have a σ).
+    """
+    from depth.priors import common_size
+    alone = [estimate_face(rays, m, "exact", seed=seed, up=up) for m in measurements]
+    weighed = [e for e in alone if e and 0.0 < e.std.get("size", 0.0) < np.inf]
+    if len(weighed) < 2:
+        why = (f"the shape prior needs at least 2 cubes read with a size σ; {len(weighed)} "
+               f"{'was' if len(weighed) == 1 else 'were'}")
+        return [FailedEstimate("exact_shape_prior", why if e else e.reason) for e in alone]
+    fused = common_size([e.size for e in weighed], [e.std["size"] for e in weighed])
+    return [at_common_size(*(estimate_face(rays, m, "exact", cube_size=size, seed=seed, up=up)
+                             for size in (fused.size, fused.size + fused.std)), fused)
+            if e else FailedEstimate("exact_shape_prior", e.reason) for m, e in zip(measurements, alone)]
 
 
 def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact",

@@ -24,7 +24,7 @@ from scipy.optimize import least_squares
 from depth import ddar
 from depth.errors import DegenerateGeometryError, DepthError
 
-__all__ = ["ShapePriorResult", "DepthPriorResult", "shape_prior", "depth_prior"]
+__all__ = ["ShapePriorResult", "DepthPriorResult", "CommonSize", "shape_prior", "depth_prior", "common_size"]
 
 
 @dataclass(frozen=True)
@@ -73,6 +73,51 @@ class DepthPriorResult:
     r_o: float
     depth_std: np.ndarray
     r_o_std: float
+
+
+@dataclass(frozen=True)
+class CommonSize:
+    """The one edge length of K cubes measured each on its own (`common_size`).
+
+    size : the inverse-variance weighted mean; std : its σ, scaled by the Birge ratio where that exceeds 1;
+    birge_ratio : sqrt(χ² / (K − 1)), about 1 when the sizes agree within their σ, above it when they do not
+    (cubes not all one size, or a reading off by more than its σ says); chi2 : Σ ((s_j − size) / σ_j)².
+    """
+
+    size: float
+    std: float
+    birge_ratio: float
+    chi2: float
+
+
+def common_size(sizes, sigmas) -> CommonSize:
+    """The common edge length of K ≥ 2 cubes of one size, from each one's own estimate and σ.
+
+    Parameters
+    ----------
+    sizes : (K,) float64 — each cube's edge length, estimated alone (e.g. by `exact`)
+    sigmas : (K,) float64 — their first-order σ, each > 0
+
+    Each estimate taken as Gaussian about the common size, the joint likelihood peaks at the
+    inverse-variance weighted mean, whose σ is sqrt(1 / Σ σ_j⁻²). Where the sizes scatter beyond their σ
+    the σ is scaled by the Birge ratio (the Particle Data Group's scale factor), as `shape_prior`'s.
+    """
+    s = np.asarray(sizes, dtype=np.float64)
+    sig = np.asarray(sigmas, dtype=np.float64)
+    if s.ndim != 1 or sig.shape != s.shape:
+        raise DepthError(f"sizes, sigmas: expected two (K,) arrays of one length, got shapes {s.shape} and {sig.shape}")
+    if len(s) < 2:
+        raise DepthError(f"sizes: the shape prior needs at least 2 cubes, got {len(s)}")
+    if not (np.all(np.isfinite(s)) and np.all(s > 0)):
+        raise DepthError("sizes: expected finite positive edge lengths")
+    if not (np.all(np.isfinite(sig)) and np.all(sig > 0)):
+        raise DepthError("sigmas: expected finite positive standard deviations")
+    w = 1.0 / sig ** 2
+    size = float(np.sum(w * s) / np.sum(w))
+    chi2 = float(np.sum(w * (s - size) ** 2))
+    birge = float(np.sqrt(chi2 / (len(s) - 1)))
+    return CommonSize(size=size, std=max(1.0, birge) * float(np.sqrt(1.0 / np.sum(w))), birge_ratio=birge,
+                      chi2=chi2)
 
 
 def _extents(kappa_uv, name: str) -> np.ndarray:

@@ -18,7 +18,7 @@ import numpy as np
 from depth.errors import DepthError
 from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED, METHODS,
                             NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, SOLVER_MODULES, CubeEstimate,
-                            FaceMeasurement, _covering, _silhouette_disagreement, estimate_face,
+                            FaceMeasurement, _covering, _silhouette_disagreement, at_common_size, estimate_face,
                             estimate_faces_shape_prior, expected_work)
 from depth.workers import SharedMemory, fork_chain, fork_helper, fork_map, import_in_background
 from raytrace.scene import Cube
@@ -26,8 +26,10 @@ from raytrace.scene import Cube
 __all__ = ["ALL_METHODS", "CubeResult", "Refusal", "Reconstruction", "reconstruct", "check_image", "start_helper",
            "stop_helper", "helper_started"]
 
-ALL_METHODS = METHODS + ("shape_prior",)
+ALL_METHODS = METHODS + ("shape_prior", "exact_shape_prior")
 DEFAULT_METHOD = "exact"
+EXACT_METHODS = ("exact", "exact_shape_prior")
+"""The methods whose faces `exact` fits (and whose edge misfit the results report)."""
 
 
 @dataclass(frozen=True)
@@ -44,7 +46,7 @@ class CubeResult:
     @property
     def edge_misfit_px(self) -> float | None:
         """Rms distance (px) of the edge points from the fitted face: `exact`'s; None for the other methods."""
-        return float(self.estimate.rms_residual) if self.estimate.method == "exact" else None
+        return float(self.estimate.rms_residual) if self.estimate.method in EXACT_METHODS else None
 
     def to_dict(self) -> dict:
         """The per-cube keys of SETUP_FORMAT.md's result, plus diagnostics (added keys only)."""
@@ -276,12 +278,12 @@ SAME_FACE_REASON = "the same face as the cube read at"
 
 
 def _one_per_face(results):
-    """`results` ((estimate, outline, reason or None, bbox) per measured face) with every face read where
-    another was read already (the centre of either's outline within the other's) refused, the one with the
+    """`results` ((estimate, outline, reason or None, bbox, and anything else) per measured face) with every face
+    read where another was read already (the centre of either's outline within the other's) refused, the one with the
     lower edge misfit kept: two darker faces of one white cube, each grown across faint edges into its whole
     front face (`_faces`' `regrown`)."""
     kept, out = [], []
-    for est, outline, reason, bbox in results:
+    for est, outline, reason, bbox, *reading in results:
         if not reason:
             centre = np.mean(outline.corners_px, axis=0)
             for k in kept:
@@ -289,14 +291,14 @@ def _one_per_face(results):
                 other_centre = np.mean(other.corners_px, axis=0)
                 if _inside(centre, other.corners_px) or _inside(other_centre, outline.corners_px):
                     if est.rms_residual < out[k][0].rms_residual:  # this one kept, the other refused
-                        (est, outline, reason, bbox), out[k] = out[k], (est, outline, None, bbox)
+                        (est, outline, reason, bbox, *reading), out[k] = out[k], (est, outline, None, bbox, *reading)
                         centre, other_centre = other_centre, centre
                     reason = (f"{SAME_FACE_REASON} ({other_centre[0]:.0f}, {other_centre[1]:.0f}) px from "
                               "another blob")
                     break
             else:
                 kept.append(len(out))
-        out.append((est, outline, reason, bbox))
+        out.append((est, outline, reason, bbox, *reading))
     return out
 
 
@@ -517,8 +519,11 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     image : (H, W, 3) uint8 or float64 in [0, 1], sRGB
     camera : raytrace.camera.PinholeCamera
     mirror : raytrace.mirror.CylinderMirror (or any mirror with `intersect`)
-    method : "exact" (default), "ddar", "dds" or "shape_prior"
-    cube_size : float, optional — known edge length in metres
+    method : "exact" (default), "ddar", "dds", "shape_prior" or "exact_shape_prior" (the cubes are of one
+        unknown size: each face is fitted by `exact`, their sizes fused into one (`depth.priors.common_size`),
+        and each face fitted again at that size; its σ adds the common size's, carried through the fit)
+    cube_size : float, optional — known edge length in metres (not with "exact_shape_prior", which
+        estimates it)
     progress : callable(done, total), optional: called as each detected blob is outlined, then as each
         face outlined is estimated; `total` is twice the blobs detected (a blob refused at its outline
         counts as estimated then)
@@ -537,6 +542,9 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
 
     if method not in ALL_METHODS:
         raise DepthError(f"method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
+    if method == "exact_shape_prior" and cube_size is not None:
+        raise DepthError("cube_size: exact_shape_prior estimates the cubes' common size; with a known size use "
+                         "method exact")
     if blur_domain not in ("auto",) + BLUR_DOMAINS:
         raise DepthError(f"blur_domain: expected one of auto, {', '.join(BLUR_DOMAINS)}, got {blur_domain!r}")
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1):
@@ -723,6 +731,9 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
     from depth.measure import (FAINT_EDGE_CONTRAST, FAINT_EDGE_READINGS, NECK_REASON, blur_domain_evidence,
                                convex_filled, detection_order, extended_to_blob, face_outline, faint_regrowth,
                                pooled_blur_domain, same_material_faces)
+
+    # exact_shape_prior: every face read as `exact` reads it, then fitted again at the common size (`_common`)
+    one_size, method = method == "exact_shape_prior", "exact" if method == "exact_shape_prior" else method
 
     def rays(px):
         r = mirror_rays(camera, mirror, px)
@@ -923,11 +934,11 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                 if again is not None:
                     measured[k] = (_attached(again[0], det.mask, img), measured[k][1], again[1])
 
-    def verdict(k, est, meas) -> str | None:
-        """Why the estimate of face k is refused, or None."""
+    def verdict(k, est, meas, size=cube_size) -> str | None:
+        """Why the estimate of face k (its cube's size known to be `size`, if not None) is refused, or None."""
         if not est:
             return f"{est.method}: {est.reason}"
-        if k in achromatic and (shadow := _shadow_reason(rays, meas, est, cube_size, up, img, sky)):
+        if k in achromatic and (shadow := _shadow_reason(rays, meas, est, size, up, img, sky)):
             return shadow
         if inside := _inside_mirror_reason(mirror, est):
             return f"{est.method}: {inside}"
@@ -936,8 +947,9 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         return None
 
     def settled(k, est=None):
-        """Face k's (estimate, outline, reason refused or None); est: a joint estimate
-        (shape_prior), taken as it is, else the face is estimated here."""
+        """Face k's (estimate, outline, reason refused or None, bbox, reading); est: a joint estimate
+        (shape_prior), taken as it is, else the face is estimated here. The reading, for `_common` alone (else
+        None): (k, the measurement estimated, bare, and its blob mask packed where it is not face k's blob)."""
         meas, _, outline = measured[k]
         if est is None:
             est = first[k] if first[k] is not None else estimate_face(rays, meas, method=method, cube_size=cube_size,
@@ -991,9 +1003,56 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                 other_meas = _attached(other_meas, grown.mask, img)
                 other_est = estimate_face(rays, other_meas, method=method, cube_size=cube_size, up=up)
                 if verdict(k, other_est, other_meas) is None:
-                    est, outline, reason, bbox = other_est, other, None, grown.bbox
+                    est, meas, outline, reason, bbox = other_est, other_meas, other, None, grown.bbox
                     break
-        return est, outline, reason, bbox
+        if not one_size or reason:
+            return est, outline, reason, bbox, None
+        own = meas.blob_mask is sources[k][0].mask
+        return est, outline, reason, bbox, (k, _bare(meas), None if own else np.packbits(meas.blob_mask))
+
+    def refit(readings, fused):
+        """The faces `readings` (`settled`'s) fitted by `exact` at the common size `fused` and at it plus its σ (in
+        worker processes): per face, its estimate (`at_common_size`), or the reason it is refused."""
+        def attached(reading):
+            k, meas, packed = reading
+            blob = sources[k][0].mask if packed is None else np.unpackbits(
+                packed, count=mask.size).reshape(mask.shape).view(bool)
+            return _attached(meas, blob, img)
+
+        def fit(i):
+            size = fused.size + (i % 2) * fused.std
+            return estimate_face(rays, attached(readings[i // 2]), method="exact", cube_size=size, up=up)
+        fits = fork_map(fit, 2 * len(readings), workers,
+                        cost=[expected_work(readings[i // 2][1], "exact") for i in range(2 * len(readings))])
+        out = []
+        for reading, at, beyond in zip(readings, fits[::2], fits[1::2]):
+            est = at_common_size(at, beyond, fused)
+            if not est:
+                out.append(f"{est.method}: {est.reason}")
+            elif reason := verdict(reading[0], at, attached(reading), fused.size):  # (`at`: exact's, as checks read)
+                out.append(f"exact_shape_prior: at the common size {fused.size * 1e3:.2f} mm: {reason}")
+            else:
+                out.append(est)
+        return out
+
+    def common(results):
+        """`_one_per_face`'s results with each cube read fitted again at the common size of all (exact_shape_prior),
+        as `estimate_faces_exact_shape_prior` does; every cube refused where fewer than 2 sizes have a σ."""
+        from depth.priors import common_size
+
+        kept = [i for i, r in enumerate(results) if not r[2]]
+        # (a size whose σ is not a positive number weighs nothing; its face is still fitted at the common size)
+        weighed = [i for i in kept if 0.0 < results[i][0].std.get("size", 0.0) < np.inf]
+        if len(weighed) < 2:
+            why = (f"exact_shape_prior: the shape prior needs at least 2 cubes read with a size σ; {len(weighed)} "
+                   f"{'was' if len(weighed) == 1 else 'were'}")
+            return [r if r[2] else (r[0], r[1], why, r[3], None) for r in results]
+        fused = common_size([results[i][0].size for i in weighed], [results[i][0].std["size"] for i in weighed])
+        out = list(results)
+        for i, again in zip(kept, refit([results[i][4] for i in kept], fused)):
+            est, outline, _, bbox, _ = results[i]
+            out[i] = (est, outline, again, bbox, None) if isinstance(again, str) else (again, outline, None, bbox, None)
+        return out
 
     # the estimates' progress, after the outlines' (the blobs refused at theirs counted as estimated)
     before = len(detections) + len(refused)
@@ -1013,7 +1072,10 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                            cost=[0.0 if f is not None else expected_work(m, method)
                                  for (m, _, _), f in zip(measured, first)],
                            progress=estimated)
-    for est, outline, reason, bbox in _one_per_face(results):
+    results = _one_per_face(results)
+    if one_size:
+        results = common(results)
+    for est, outline, reason, bbox, _ in results:
         if reason:
             refused.append(Refusal(bbox, reason))
             continue
@@ -1021,5 +1083,6 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         cubes.append(CubeResult(estimate=est, depth=depth, depth_std=float(est.std.get("z", np.nan)),
                                 corners_px=outline.corners_px, bbox=bbox, edge_points=outline.n_points))
     cubes.sort(key=lambda c: c.bbox[0])
-    return Reconstruction(method=method, cubes=cubes, refused=refused, mirror_mask=mask,
+    return Reconstruction(method="exact_shape_prior" if one_size else method, cubes=cubes, refused=refused,
+                          mirror_mask=mask,
                           blur_domain=domain if any_blurred else None)

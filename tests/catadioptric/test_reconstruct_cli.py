@@ -72,6 +72,21 @@ def test_other_methods_run(scene, method):
     assert all(c["edge_misfit_px"] is None for c in cubes)  # an edge misfit in pixels is `exact`'s
 
 
+def test_exact_shape_prior_reads_both_cubes_at_one_size_with_exact_s_misfits(scene):
+    out = scene / "exact_shape_prior.json"
+    assert main(["reconstruct", str(scene / "mirror.png"), "--method", "exact_shape_prior", "-o", str(out)]) == 0
+    result = json.loads(out.read_text())
+    truth = json.loads((scene / "mirror.truth.json").read_text())
+    assert result["method"] == "exact_shape_prior" and len(result["cubes"]) == 2
+    assert len({c["size"] for c in result["cubes"]}) == 1
+    for cube in result["cubes"]:
+        assert CONTRACT_KEYS <= set(cube) and cube["method"] == "exact_shape_prior"
+        t = min(truth["cubes"], key=lambda t: np.linalg.norm(np.subtract(t["center"], cube["center"])))
+        assert np.linalg.norm(np.subtract(cube["center"], t["center"])) / t["depth"] < 0.05
+        assert cube["size"] == pytest.approx(0.04, rel=0.05)
+        assert 0.0 < cube["edge_misfit_px"] < EDGE_MISFIT_WARN_PX and cube["uncertainty_scale"] >= 1.0
+
+
 def test_the_table_flags_a_face_whose_edges_no_square_explains(scene):
     """A cube whose edge points miss the fitted square by more than EDGE_MISFIT_WARN_PX rms is marked,
     with a line saying what that means; the others are not."""
@@ -139,6 +154,8 @@ def test_bad_inputs_exit_1_with_one_line_and_write_nothing(scene, capsys, tmp_pa
          "--method: expected one of")
     _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--cube-size", "-1", "-o", out],
          "--cube-size: expected a positive edge length")
+    _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--cube-size", "0.04", "--method",
+                            "exact_shape_prior", "-o", out], "--cube-size: exact_shape_prior estimates the cubes'")
     _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--blur-domain", "gamma", "-o", out],
          "--blur-domain: expected one of auto, encoded, linear")
     _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--workers", "0", "-o", out],

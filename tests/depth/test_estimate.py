@@ -404,6 +404,47 @@ def test_shape_prior_sigma_widens_where_the_cubes_disagree(rig):
     assert {e.std["scale"] for e in estimate_faces_shape_prior(rig.rays, [rig.measure(c) for c in same])} == {1.0}
 
 
+def test_exact_shape_prior_recovers_identical_cubes_exactly(rig):
+    from depth.estimate import estimate_faces_exact_shape_prior
+    cubes = [rig.cube(0.35, -30.0, size=0.05), rig.cube(0.6, 5.0, size=0.05, yaw_deg=15.0),
+             rig.cube(0.85, 25.0, size=0.05)]
+    ests = estimate_faces_exact_shape_prior(rig.rays, [rig.measure(c) for c in cubes], up=rig.mirror.axis)
+    for est, cube in zip(ests, cubes):
+        assert est and est.method == "exact_shape_prior", getattr(est, "reason", "")
+        assert est.size == ests[0].size == pytest.approx(0.05, rel=1e-6)
+        assert centre_error(rig, est, cube) < 1e-6
+        assert est.std["scale"] == 1.0 and est.std["size"] > 0.0
+    single = estimate_faces_exact_shape_prior(rig.rays, [rig.measure(cubes[0])], up=rig.mirror.axis)
+    assert len(single) == 1 and not single[0] and "at least 2 cubes" in single[0].reason
+
+
+def test_exact_shape_prior_gives_a_narrow_face_the_scale_of_the_others(rig):
+    """Three cubes 3 cm across: two near (0.35, 0.45 m), one far (0.9 m, turned up to 10°) whose face images
+    narrow, each side offset as a whole by 0.1 px (σ) and each point by 0.05 px. Alone, `exact` reads the far
+    cube's scale from its own edges: its depth σ runs to tens of %. Fitted at the common size, which the near
+    cubes fix, its σ shrinks below its own (the near cubes' scale carried through its fit), its error at
+    least halves in the median, and every depth stays within 3 σ."""
+    from depth.estimate import estimate_faces_exact_shape_prior
+    alone_err, joint_err = [], []
+    for seed in range(6):
+        rng = np.random.default_rng(seed)
+        cubes = [rig.cube(0.35, -25.0, size=0.03), rig.cube(0.45, 20.0, size=0.03),
+                 rig.cube(0.9, rng.uniform(-5, 5), size=0.03, yaw_deg=rng.uniform(-10, 10))]
+        meas = [rig.measure(c, n=24, gaps=True, noise_px=0.05, side_offset_px=0.1, seed=seed + 10 * k)
+                for k, c in enumerate(cubes)]
+        far = estimate_face(rig.rays, meas[2], method="exact", up=rig.mirror.axis)
+        joint = estimate_faces_exact_shape_prior(rig.rays, meas, up=rig.mirror.axis)
+        assert far and all(joint), [getattr(e, "reason", "") for e in (far, *joint)]
+        assert len({e.size for e in joint}) == 1
+        for est, cube in zip(joint, cubes):
+            depth = float(rig.mirror.distance_to_axis(est.center[None])[0])
+            assert abs(depth - rig.depth(cube)) <= 3.0 * est.std["z"]
+        assert joint[2].std["z"] < far.std["z"]
+        alone_err.append(centre_error(rig, far, cubes[2]))
+        joint_err.append(centre_error(rig, joint[2], cubes[2]))
+    assert np.median(joint_err) <= 0.5 * np.median(alone_err), (alone_err, joint_err)
+
+
 @pytest.mark.parametrize("sizes, distances", [((0.02, 0.08), (0.35, 0.85)), ((0.03, 0.06), (0.5, 0.6))])
 def test_shape_prior_refuses_cubes_of_other_sizes_whose_joint_size_comes_out_negative(rig, sizes, distances):
     # the joint least squares has no sign constraint: two cubes 4x (2x) apart in size drive the common
