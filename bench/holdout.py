@@ -1,16 +1,18 @@
-"""Held-out renders: `python -m bench.holdout SEED [--grey] [--jpeg]` (SEED 8080, 9090, 7070, 6060, 5050, 4040 or 3030 as in bench/README.md).
+"""Held-out renders: `python -m bench.holdout SEED [--grey] [--jpeg] [--method=M]` (SEED 8080, 9090, 7070, 6060,
+5050, 4040 or 3030 as in bench/README.md).
 
 Eight scenes no bench tunes on (`make_scenes(8, seed=SEED)`), rendered by Mitsuba 3 (16 spp) standing
 on a floor (albedo drawn per scene) under the lighting bench's sky map and a sun from a direction and
 of a strength drawn from `default_rng(SEED + 7)`; the odd scenes' cubes painted grey, white or black
 (`bench_lighting.greyed`), or every scene's with --grey; with --jpeg each render is put through OpenCV's
 JPEG coder at quality 90 (the reconstruct bench's JPEG variant) and reconstructed as compressed: JPEG
-images no JPEG change was tuned on. `exact` on each; per cube the centre error
+images no JPEG change was tuned on. `exact` on each (or --method's estimator: `shape_prior` and `exact_shape_prior`
+on the scenes whose cubes are of one size alone, 2 and 5 of each seed); per cube the centre error
 ‖ĉ − c‖ / (distance of c to the axis) in %, the depth error in reported σ, the turn and the edge
 misfit, the refusals, each cube invented (`bench_lighting.invented_line`), then recall, false positives
 and the error median / 90th percentile / max.
 Not part of `make bench` (the first run renders for about 5 min on 2 cores; renders are cached in
-bench/out/renders/, and the results written to bench/out/holdout-SEED[-grey][-jpeg].json).
+bench/out/renders/, and the results written to bench/out/holdout-SEED[-grey][-jpeg][-M].json, M where not exact).
 """
 
 from __future__ import annotations
@@ -44,26 +46,29 @@ def renders(seed: int, all_grey: bool = False):
 def main(argv=None) -> int:
     from bench import mitsuba_scenes as ms
     from bench.bench_lighting import invented_line, match
-    from bench.bench_reconstruct import OUT, variant
-    from depth.reconstruct import reconstruct
+    from bench.bench_reconstruct import OUT, SAME_SIZE_METHODS, variant
+    from depth.reconstruct import ALL_METHODS, reconstruct
     from raytrace.truth import cube_truth
 
     argv = sys.argv[1:] if argv is None else argv
     args = [a for a in argv if not a.startswith("--")]
-    if len(args) != 1 or not args[0].isdigit():
-        print("usage: python -m bench.holdout SEED [--grey] [--jpeg]   (SEED: a whole number, e.g. 8080 or 9090)",
-              file=sys.stderr)
+    methods = [a.split("=", 1)[1] for a in argv if a.startswith("--method=")] or ["exact"]
+    if len(args) != 1 or not args[0].isdigit() or len(methods) != 1 or methods[0] not in ALL_METHODS:
+        print("usage: python -m bench.holdout SEED [--grey] [--jpeg] [--method=M]   (SEED: a whole number, e.g. 8080 "
+              f"or 9090; M: one of {', '.join(ALL_METHODS)}, default exact)", file=sys.stderr)
         return 2
-    seed, all_grey, jpeg = int(args[0]), "--grey" in argv, "--jpeg" in argv
+    seed, all_grey, jpeg, method = int(args[0]), "--grey" in argv, "--jpeg" in argv, methods[0]
     if not ms.mitsuba_available():
         print("bench.holdout: Mitsuba 3 is not installed (pip install -e '.[bench]'); skipped")
         return 0
     res, fps = {}, []
     for i, setup, sc, grey, img in renders(seed, all_grey):
+        if method in SAME_SIZE_METHODS and not sc.same_size:
+            continue
         if jpeg:
             img = variant(img, "jpeg", seed=0)
         cam, mir = setup.camera.build(), setup.mirror.build()
-        rec = reconstruct(img, cam, mir, compressed=jpeg)
+        rec = reconstruct(img, cam, mir, method=method, compressed=jpeg)
         truth = [cube_truth(cam, mir, c.build()) for c in setup.objects]
         pairs, extra = match(rec.cubes, truth)
         fps += [{"scene": i, "at_px": np.round(np.mean(cube.corners_px, axis=0), 1).tolist(),
@@ -89,12 +94,14 @@ def main(argv=None) -> int:
             print(f"      {invented_line(cube)}")
     e = np.array([v["centre_err_pct"] for v in res.values() if v])
     z = np.abs([v["depth_sigmas"] for v in res.values() if v])
-    print(f"holdout {seed}{' (all grey)' if all_grey else ''}{' (JPEG)' if jpeg else ''}: found {len(e)} of {len(res)}, {len(fps)} false "
+    print(f"holdout {seed}{' (all grey)' if all_grey else ''}{' (JPEG)' if jpeg else ''}"
+          f"{f' ({method})' if method != 'exact' else ''}: found {len(e)} of {len(res)}, {len(fps)} false "
           f"positives; centre error median {np.median(e):.2f} %, 90th pct {np.percentile(e, 90):.2f} %, max "
           f"{e.max():.1f} %; depth within 1 / 2 / 3 σ {100 * np.mean(z <= 1):.0f} / {100 * np.mean(z <= 2):.0f} / "
           f"{100 * np.mean(z <= 3):.0f} %")
     OUT.mkdir(parents=True, exist_ok=True)
-    path = OUT / f"holdout-{seed}{'-grey' if all_grey else ''}{'-jpeg' if jpeg else ''}.json"
+    path = OUT / (f"holdout-{seed}{'-grey' if all_grey else ''}{'-jpeg' if jpeg else ''}"
+                  f"{f'-{method}' if method != 'exact' else ''}.json")
     path.write_text(json.dumps({"cubes": res, "false_positives": fps}, indent=1) + "\n")
     return 0
 
