@@ -418,6 +418,28 @@ def test_exact_shape_prior_recovers_identical_cubes_exactly(rig):
     assert len(single) == 1 and not single[0] and "at least 2 cubes" in single[0].reason
 
 
+def test_at_common_size_adds_the_common_size_sigma_to_the_fit_s_own():
+    from depth.estimate import CubeEstimate, FailedEstimate, at_common_size
+    from depth.priors import CommonSize
+
+    def est(centre, z, std):
+        return CubeEstimate(method="exact", center=np.asarray(centre, float), size=0.04, z=z,
+                            front_face_center=np.zeros(3), normal=np.array([0.0, 0.0, 1.0]), aspect_ratio=5.0,
+                            std=std, rms_residual=0.05)
+    at = est([0.1, 0.0, 0.5], 0.5, {"z": 0.003, "size": 0.0, "center": 0.0035})
+    beyond = est([0.1, 0.0, 0.504], 0.504, {"z": 0.003, "size": 0.0, "center": 0.0035})  # moved 4 mm by +1 σ
+    fused = CommonSize(size=0.04, std=0.0004, birge_ratio=1.7, chi2=5.78)
+    out = at_common_size(at, beyond, fused)
+    assert out.method == "exact_shape_prior" and out.size == 0.04 and np.array_equal(out.center, at.center)
+    assert out.std["z"] == pytest.approx(0.005, rel=1e-12)  # √(3² + 4²) mm
+    assert out.std["center"] == pytest.approx(np.hypot(0.0035, 0.004), rel=1e-12)
+    assert out.std["size"] == 0.0004 and out.std["scale"] == 1.7 and out.rms_residual == 0.05
+    assert at_common_size(at, beyond, CommonSize(0.04, 0.0004, 0.6, 0.36)).std["scale"] == 1.0
+    failed = at_common_size(at, FailedEstimate("exact", "no pose fits"), fused)
+    assert not failed and failed.method == "exact_shape_prior"
+    assert failed.reason == "at the common size 40.40 mm: no pose fits"
+
+
 def test_exact_shape_prior_gives_a_narrow_face_the_scale_of_the_others(rig):
     """Three cubes 3 cm across: two near (0.35, 0.45 m), one far (0.9 m, turned up to 10°) whose face images
     narrow, each side offset as a whole by 0.1 px (σ) and each point by 0.05 px. Alone, `exact` reads the far

@@ -416,13 +416,17 @@ def test_exact_shape_prior_reads_a_far_cube_at_the_scale_of_two_near_ones_in_a_r
     own edges hardly fix its scale: its depth σ alone is about as large as its depth. `exact_shape_prior` reads
     all three at one size, within 1 % of the truth; each centre within 1 % and each depth within 3 σ, the far
     cube's σ a fraction of what `exact` alone gives it."""
+    from depth.priors import common_size
     from depth.reconstruct import reconstruct
     image, cubes = _identical_cubes_image(rig, [(0.4, -45.0, 0.0), (0.45, 40.0, 10.0), (1.0, 15.0, 0.0)])
     alone = reconstruct(image, rig.camera, rig.mirror, method="exact")
     rec = reconstruct(image, rig.camera, rig.mirror, method="exact_shape_prior")
     assert rec.method == "exact_shape_prior" and not rec.refused and len(rec.cubes) == len(alone.cubes) == 3
     sizes = {c.estimate.size for c in rec.cubes}
-    assert len(sizes) == 1 and abs(sizes.pop() / 0.04 - 1.0) < 0.01
+    assert len(sizes) == 1 and abs(next(iter(sizes)) / 0.04 - 1.0) < 0.01
+    # the size is that of the three `exact` readings, weighed by their σ
+    fused = common_size([c.estimate.size for c in alone.cubes], [c.estimate.std["size"] for c in alone.cubes])
+    assert sizes == {fused.size} and rec.cubes[0].estimate.std["size"] == fused.std
     for found, ref in zip(rec.cubes, alone.cubes):
         cube = min(cubes, key=lambda q: np.linalg.norm(found.estimate.center - q.center))
         assert np.linalg.norm(found.estimate.center - cube.center) < 0.01 * rig.depth(cube)
@@ -431,6 +435,16 @@ def test_exact_shape_prior_reads_a_far_cube_at_the_scale_of_two_near_ones_in_a_r
         assert d["method"] == "exact_shape_prior" and d["uncertainty_scale"] >= 1.0 and d["edge_misfit_px"] < 0.3
         if cube is cubes[2]:
             assert found.depth_std < 0.2 * ref.depth_std
+    # The common size's σ carried through each fit: at that size known, `exact` reads the same depths with σ from
+    # the edges alone; the rest is the scale's. At a fixed image a cube's distance from the (virtual) viewpoint
+    # scales with its size, and that distance lies between its depth less the mirror's radius and its depth plus
+    # the camera's distance from the axis (0.55 m): so does the share of the σ the size adds, per unit σ_S / S.
+    size, size_std = rec.cubes[0].estimate.size, rec.cubes[0].estimate.std["size"]
+    known = reconstruct(image, rig.camera, rig.mirror, method="exact", cube_size=size)
+    for found, at in zip(rec.cubes, known.cubes):
+        assert found.depth == pytest.approx(at.depth, rel=1e-9)
+        scale_share = np.sqrt(found.depth_std ** 2 - at.depth_std ** 2) / (size_std / size)
+        assert found.depth - rig.mirror.radius < scale_share < found.depth + 0.55
 
 
 def test_exact_shape_prior_refuses_a_lone_cube_and_a_given_size(rig):
