@@ -1724,8 +1724,9 @@ def estimate_faces_exact_shape_prior(rays: RayFunction, measurements, up=None, s
     """K ≥ 2 identical cubes of unknown size, solved jointly from the exact rays (beyond the paper).
 
     Each face is fitted by `exact` alone; their sizes, weighed by their σ, give the common size
-    (`depth.priors.common_size`); each face is fitted by `exact` again at that size (`at_common_size`). A
-    narrow face whose own fit hardly fixes its scale takes it from the others. Returns one estimate per
+    (`depth.priors.common_size`, which sets aside a size the others disagree with by over 3 σ); each face is
+    fitted by `exact` again at that size (`at_common_size`). A narrow face whose own fit hardly fixes its scale
+    takes it from the others. Returns one estimate per
     measurement (`FailedEstimate` where a fit fails, or for all where fewer than 2 sizes have a σ).
     """
     from depth.priors import common_size

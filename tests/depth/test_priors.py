@@ -127,7 +127,7 @@ _SIZES = st.lists(st.floats(0.01, 0.1), min_size=2, max_size=6)
 @given(_SIZES, st.floats(1e-4, 1e-2))
 @settings(max_examples=60, deadline=None)
 def test_common_size_of_sizes_of_one_sigma_is_their_mean(sizes, sigma):
-    fused = priors.common_size(sizes, [sigma] * len(sizes))
+    fused = priors.common_size(sizes, [sigma] * len(sizes), reject=None)
     assert fused.size == pytest.approx(np.mean(sizes), rel=1e-12)
     chi2 = np.sum((np.asarray(sizes) - np.mean(sizes)) ** 2) / sigma ** 2
     assert fused.chi2 == pytest.approx(chi2, rel=1e-9, abs=1e-12)
@@ -144,7 +144,7 @@ def test_common_size_peaks_the_joint_gaussian_likelihood_with_its_curvature_as_s
     s, sig = np.array(cubes).T
     nll = lambda x: 0.5 * np.sum(((s - x) / sig) ** 2)  # noqa: E731
     best = minimize_scalar(nll, bounds=(0.0, 0.2), method="bounded", options={"xatol": 1e-12}).x
-    fused = priors.common_size(s, sig)
+    fused = priors.common_size(s, sig, reject=None)
     assert fused.size == pytest.approx(best, abs=1e-8)
     h = 1e-5
     curvature = (nll(best + h) - 2 * nll(best) + nll(best - h)) / h ** 2
@@ -158,7 +158,7 @@ def test_common_size_sigma_is_calibrated_and_widens_where_a_cube_is_of_another_s
     true, sig = 0.04, np.array([0.0004, 0.001, 0.003, 0.006])
     within, within_scaled = [], []
     for _ in range(4000):
-        fused = priors.common_size(true + rng.normal(0, sig), sig)
+        fused = priors.common_size(true + rng.normal(0, sig), sig, reject=None)
         raw = fused.std / max(1.0, fused.birge_ratio)
         within.append(abs(fused.size - true) <= raw)
         within_scaled.append(abs(fused.size - true) <= fused.std)
@@ -166,8 +166,34 @@ def test_common_size_sigma_is_calibrated_and_widens_where_a_cube_is_of_another_s
     assert np.mean(within_scaled) >= np.mean(within)
     # one cube 20 % larger than the others, at their σ: mean 0.042, χ² = 3·(0.002/0.0004)² + (0.006/0.0004)² = 300
     # on 3 degrees of freedom, Birge ratio 10: the σ 0.0004/√4 = 0.0002 widens tenfold, to reach the three
-    off = priors.common_size([0.04, 0.04, 0.04, 0.048], [0.0004] * 4)
+    off = priors.common_size([0.04, 0.04, 0.04, 0.048], [0.0004] * 4, reject=None)
     assert (off.size, off.chi2, off.birge_ratio, off.std) == pytest.approx((0.042, 300.0, 10.0, 0.002), rel=1e-9)
+    # by default that cube is set aside: the others' mean is 0.04 ± 0.0004/√3, and 0.048 lies (0.008) / √(0.0004² +
+    # 0.0004²/3) = 17.3 σ from it; the three left agree exactly
+    kept = priors.common_size([0.04, 0.04, 0.04, 0.048], [0.0004] * 4)
+    assert kept.used.tolist() == [True, True, True, False]
+    assert (kept.size, kept.chi2, kept.std) == pytest.approx((0.04, 0.0, 0.0004 / np.sqrt(3)), rel=1e-9, abs=1e-15)
+
+
+@given(st.lists(st.tuples(st.floats(0.01, 0.1), st.floats(1e-4, 1e-2)), min_size=2, max_size=6), st.floats(1.0, 4.0))
+@settings(max_examples=80, deadline=None)
+def test_common_size_sets_aside_the_sizes_the_others_disagree_with_one_at_a_time(cubes, reject):
+    # a plain loop over the leave-one-out statistic, independent of the vectorised one
+    s, sig = np.array(cubes).T
+    used = list(range(len(s)))
+    while len(used) >= 3:
+        t = []
+        for j in used:
+            rest = [k for k in used if k != j]
+            w = 1.0 / sig[rest] ** 2
+            t.append(abs(s[j] - np.sum(w * s[rest]) / np.sum(w)) / np.sqrt(sig[j] ** 2 + 1.0 / np.sum(w)))
+        if max(t) <= reject:
+            break
+        used.pop(int(np.argmax(t)))
+    fused = priors.common_size(s, sig, reject=reject)
+    assert np.flatnonzero(fused.used).tolist() == used and fused.used.sum() >= 2
+    w = 1.0 / sig[used] ** 2
+    assert fused.size == pytest.approx(np.sum(w * s[used]) / np.sum(w), rel=1e-9)
 
 
 @pytest.mark.parametrize("sizes, sigmas, match", [
@@ -180,3 +206,5 @@ def test_common_size_sigma_is_calibrated_and_widens_where_a_cube_is_of_another_s
 def test_common_size_refuses_what_is_no_set_of_sizes_by_name(sizes, sigmas, match):
     with pytest.raises(DepthError, match=match):
         priors.common_size(sizes, sigmas)
+    with pytest.raises(DepthError, match="reject: expected a positive number of σ or None, got 0"):
+        priors.common_size([0.04, 0.05], [0.001, 0.001], reject=0)
