@@ -39,7 +39,8 @@ from depth.xslit import XSlit
 from raytrace.scene import Cube
 
 __all__ = ["METHODS", "FaceMeasurement", "CubeEstimate", "FailedEstimate", "estimate_face",
-           "estimate_faces_shape_prior", "estimate_faces_exact_shape_prior", "at_common_size", "expected_work",
+           "estimate_faces_shape_prior", "estimate_faces_exact_shape_prior", "common_size_of", "at_common_size",
+           "expected_work",
            "LocalXSlit", "local_xslit"]
 
 SOLVER_MODULES = ("scipy.optimize", "scipy.spatial.transform", "xslit_fit.fit", "xslit_fit.frame")
@@ -1720,6 +1721,18 @@ def at_common_size(at, beyond, fused) -> CubeEstimate | FailedEstimate:
     return replace(at, method="exact_shape_prior", std=std)
 
 
+def common_size_of(estimates):
+    """The common size (`depth.priors.common_size`) of cubes of one size, from the sizes of their `exact`
+    estimates that have a σ (a positive number; the others weigh nothing): a `depth.priors.CommonSize`, or a
+    `FailedEstimate` where fewer than 2 have one."""
+    from depth.priors import common_size
+    weighed = [e for e in estimates if 0.0 < e.std.get("size", 0.0) < np.inf]
+    if len(weighed) < 2:
+        return FailedEstimate("exact_shape_prior", f"the shape prior needs at least 2 cubes read with a size σ; "
+                                                   f"{len(weighed)} {'was' if len(weighed) == 1 else 'were'}")
+    return common_size([e.size for e in weighed], [e.std["size"] for e in weighed])
+
+
 def estimate_faces_exact_shape_prior(rays: RayFunction, measurements, up=None, seed: int = 0) -> list:
     """K ≥ 2 identical cubes of unknown size, solved jointly from the exact rays (beyond the paper).
 
@@ -1729,14 +1742,10 @@ def estimate_faces_exact_shape_prior(rays: RayFunction, measurements, up=None, s
     takes it from the others. Returns one estimate per
     measurement (`FailedEstimate` where a fit fails, or for all where fewer than 2 sizes have a σ).
     """
-    from depth.priors import common_size
     alone = [estimate_face(rays, m, "exact", seed=seed, up=up) for m in measurements]
-    weighed = [e for e in alone if e and 0.0 < e.std.get("size", 0.0) < np.inf]
-    if len(weighed) < 2:
-        why = (f"the shape prior needs at least 2 cubes read with a size σ; {len(weighed)} "
-               f"{'was' if len(weighed) == 1 else 'were'}")
-        return [FailedEstimate("exact_shape_prior", why if e else e.reason) for e in alone]
-    fused = common_size([e.size for e in weighed], [e.std["size"] for e in weighed])
+    fused = common_size_of([e for e in alone if e])
+    if not fused:
+        return [fused if e else FailedEstimate("exact_shape_prior", e.reason) for e in alone]
     return [at_common_size(*(estimate_face(rays, m, "exact", cube_size=size, seed=seed, up=up)
                              for size in (fused.size, fused.size + fused.std)), fused)
             if e else FailedEstimate("exact_shape_prior", e.reason) for m, e in zip(measurements, alone)]

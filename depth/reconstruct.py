@@ -18,8 +18,8 @@ import numpy as np
 from depth.errors import DepthError
 from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED, METHODS,
                             NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, SOLVER_MODULES, CubeEstimate,
-                            FaceMeasurement, _covering, _silhouette_disagreement, at_common_size, estimate_face,
-                            estimate_faces_shape_prior, expected_work)
+                            FaceMeasurement, _covering, _silhouette_disagreement, at_common_size, common_size_of,
+                            estimate_face, estimate_faces_shape_prior, expected_work)
 from depth.workers import SharedMemory, fork_chain, fork_helper, fork_map, import_in_background
 from raytrace.scene import Cube
 
@@ -732,7 +732,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                                convex_filled, detection_order, extended_to_blob, face_outline, faint_regrowth,
                                pooled_blur_domain, same_material_faces)
 
-    # exact_shape_prior: every face read as `exact` reads it, then fitted again at the common size (`_common`)
+    # exact_shape_prior: every face read as `exact` reads it, then fitted again at the common size (`common`)
     one_size, method = method == "exact_shape_prior", "exact" if method == "exact_shape_prior" else method
 
     def rays(px):
@@ -1038,16 +1038,10 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
     def common(results):
         """`_one_per_face`'s results with each cube read fitted again at the common size of all (exact_shape_prior),
         as `estimate_faces_exact_shape_prior` does; every cube refused where fewer than 2 sizes have a σ."""
-        from depth.priors import common_size
-
         kept = [i for i, r in enumerate(results) if not r[2]]
-        # (a size whose σ is not a positive number weighs nothing; its face is still fitted at the common size)
-        weighed = [i for i in kept if 0.0 < results[i][0].std.get("size", 0.0) < np.inf]
-        if len(weighed) < 2:
-            why = (f"exact_shape_prior: the shape prior needs at least 2 cubes read with a size σ; {len(weighed)} "
-                   f"{'was' if len(weighed) == 1 else 'were'}")
-            return [r if r[2] else (r[0], r[1], why, r[3], None) for r in results]
-        fused = common_size([results[i][0].size for i in weighed], [results[i][0].std["size"] for i in weighed])
+        fused = common_size_of([results[i][0] for i in kept])  # (a face whose size has no σ is fitted at it too)
+        if not fused:
+            return [r if r[2] else (r[0], r[1], f"{fused.method}: {fused.reason}", r[3], None) for r in results]
         out = list(results)
         for i, again in zip(kept, refit([results[i][4] for i in kept], fused)):
             est, outline, _, bbox, _ = results[i]
