@@ -526,7 +526,8 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         estimates it)
     progress : callable(done, total), optional: called as each detected blob is outlined, then as each
         face outlined is estimated; `total` is twice the blobs detected (a blob refused at its outline
-        counts as estimated then)
+        counts as estimated then); three times for "exact_shape_prior", whose fits at the common size
+        follow (a third of it, whatever number of faces they are)
     compressed : bool — the image went through lossy (JPEG) compression: cubes are detected on
         the `despeckled` image, edges are located on luma (its chroma is subsampled; colour where
         luma shows no edge) and its ringing is not taken for thin strips beside the faces
@@ -734,6 +735,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
 
     # exact_shape_prior: every face read as `exact` reads it, then fitted again at the common size (`common`)
     one_size, method = method == "exact_shape_prior", "exact" if method == "exact_shape_prior" else method
+    steps = 3 if one_size else 2  # (the progress's total: `steps` per detection)
 
     def rays(px):
         r = mirror_rays(camera, mirror, px)
@@ -864,7 +866,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
     early = [None] * len(detections)  # per detection, its face's estimate made before the grey ones came, or None
     if more is None:
         outcomes = outline_all(detections, None if progress is None
-                               else lambda done, _: progress(done, 2 * len(detections)))
+                               else lambda done, _: progress(done, steps * len(detections)))
     else:
         # While the grey search still runs in the parent, the coloured faces are outlined, then estimated as
         # `settled` would (a blurred face's outline waits for the image's blur-domain verdict): in one pool,
@@ -891,7 +893,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         detections, outcomes, early = (list(column) for column in zip(*found)) if found else ([], [], [])
         if progress is not None:  # the outlines, counted once their total is known
             for done in range(1, len(detections) + 1):
-                progress(done, 2 * len(detections))
+                progress(done, steps * len(detections))
     cubes, refused, measured, blurred, evidences = [], [], [], [], []
     achromatic = set()  # indices into measured of the faces found without colour
     alternatives = {}  # index into measured: (blob mask, face pixels, channels) of a face with two readings
@@ -1023,7 +1025,9 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
             size = fused.size + (i % 2) * fused.std
             return estimate_face(rays, attached(readings[i // 2]), method="exact", cube_size=size, up=up)
         fits = fork_map(fit, 2 * len(readings), workers,
-                        cost=[expected_work(readings[i // 2][1], "exact") for i in range(2 * len(readings))])
+                        cost=[expected_work(readings[i // 2][1], "exact") for i in range(2 * len(readings))],
+                        progress=None if progress is None else lambda done, n: progress(
+                            (2 * n + done) * len(detections) // n, 3 * len(detections)))
         out = []
         for reading, at, beyond in zip(readings, fits[::2], fits[1::2]):
             est = at_common_size(at, beyond, fused)
@@ -1050,7 +1054,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
 
     # the estimates' progress, after the outlines' (the blobs refused at theirs counted as estimated)
     before = len(detections) + len(refused)
-    estimated = None if progress is None else lambda done, _: progress(before + done, 2 * len(detections))
+    estimated = None if progress is None else lambda done, _: progress(before + done, steps * len(detections))
     if estimated is not None and refused:
         estimated(0, len(measured))
     if method == "shape_prior":
@@ -1069,6 +1073,8 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
     results = _one_per_face(results)
     if one_size:
         results = common(results)
+        if progress is not None and detections:  # (where no face was fitted at a common size)
+            progress(3 * len(detections), 3 * len(detections))
     for est, outline, reason, bbox, _ in results:
         if reason:
             refused.append(Refusal(bbox, reason))

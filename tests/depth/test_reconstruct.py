@@ -447,6 +447,21 @@ def test_exact_shape_prior_reads_a_far_cube_at_the_scale_of_two_near_ones_in_a_r
         assert found.depth - rig.mirror.radius < scale_share < found.depth + 0.55
 
 
+@pytest.mark.parametrize("placements", [[(0.4, -45.0, 0.0), (0.45, 40.0, 10.0)], [(0.4, -45.0, 0.0)]])
+def test_exact_shape_prior_counts_its_fits_at_the_common_size_in_the_progress(rig, placements):
+    # outlines, estimates, then the fits at the common size: three steps a blob, counted up to the total (which
+    # a lone cube, fitted at no common size, reaches as well)
+    from depth.reconstruct import reconstruct
+    image, _ = _identical_cubes_image(rig, placements)
+    for method, steps in (("exact", 2), ("exact_shape_prior", 3)):
+        calls = []
+        reconstruct(image, rig.camera, rig.mirror, method=method, progress=lambda d, t: calls.append((d, t)))
+        blobs = len(placements)
+        assert {t for _, t in calls} == {steps * blobs}
+        done = [d for d, _ in calls]
+        assert done == sorted(done) and done[-1] == steps * blobs and done[0] <= blobs
+
+
 def test_exact_shape_prior_refuses_a_lone_cube_and_a_given_size(rig):
     from depth.errors import DepthError
     from depth.reconstruct import reconstruct
