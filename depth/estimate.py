@@ -39,8 +39,8 @@ from depth.xslit import XSlit
 from raytrace.scene import Cube
 
 __all__ = ["METHODS", "FaceMeasurement", "CubeEstimate", "FailedEstimate", "estimate_face",
-           "estimate_faces_shape_prior", "estimate_faces_exact_shape_prior", "common_size_of", "at_common_size",
-           "expected_work",
+           "estimate_faces_shape_prior", "estimate_faces_exact_shape_prior", "common_size_of", "pose_at_size",
+           "at_common_size", "expected_work",
            "LocalXSlit", "local_xslit"]
 
 SOLVER_MODULES = ("scipy.optimize", "scipy.spatial.transform", "xslit_fit.fit", "xslit_fit.frame")
@@ -1721,6 +1721,14 @@ def at_common_size(at, beyond, fused) -> CubeEstimate | FailedEstimate:
     return replace(at, method="exact_shape_prior", std=std)
 
 
+def pose_at_size(rays: RayFunction, meas: FaceMeasurement, size: float, up=None, seed: int = 0):
+    """`exact`'s reading of the face at the known edge length `size`, its σ left first-order (the turn profile
+    that completes it is not run: `estimate_face`'s `defer`); the pose, centre and depth are the complete
+    reading's. For `at_common_size`'s `beyond`, whose σ is not read."""
+    reading = estimate_face(rays, meas, "exact", cube_size=size, seed=seed, up=up, defer=True)
+    return reading[0] if isinstance(reading, tuple) else reading
+
+
 def common_size_of(estimates):
     """The common size (`depth.priors.common_size`) of cubes of one size, from the sizes of their `exact`
     estimates that have a σ (a positive number; the others weigh nothing): a `depth.priors.CommonSize`, or a
@@ -1746,8 +1754,8 @@ def estimate_faces_exact_shape_prior(rays: RayFunction, measurements, up=None, s
     fused = common_size_of([e for e in alone if e])
     if not fused:
         return [fused if e else FailedEstimate("exact_shape_prior", e.reason) for e in alone]
-    return [at_common_size(*(estimate_face(rays, m, "exact", cube_size=size, seed=seed, up=up)
-                             for size in (fused.size, fused.size + fused.std)), fused)
+    return [at_common_size(estimate_face(rays, m, "exact", cube_size=fused.size, seed=seed, up=up),
+                           pose_at_size(rays, m, fused.size + fused.std, up=up, seed=seed), fused)
             if e else FailedEstimate("exact_shape_prior", e.reason) for m, e in zip(measurements, alone)]
 
 

@@ -19,7 +19,7 @@ from depth.errors import DepthError
 from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED, METHODS,
                             NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, SOLVER_MODULES, CubeEstimate,
                             FaceMeasurement, _covering, _silhouette_disagreement, at_common_size, common_size_of,
-                            estimate_face, estimate_faces_shape_prior, expected_work)
+                            estimate_face, estimate_faces_shape_prior, expected_work, pose_at_size)
 from depth.workers import SharedMemory, fork_chain, fork_helper, fork_map, import_in_background
 from raytrace.scene import Cube
 
@@ -1021,9 +1021,10 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                 packed, count=mask.size).reshape(mask.shape).view(bool)
             return _attached(meas, blob, img)
 
-        def fit(i):
-            size = fused.size + (i % 2) * fused.std
-            return estimate_face(rays, attached(readings[i // 2]), method="exact", cube_size=size, up=up)
+        def fit(i):  # (at the size plus its σ only the pose is read: its σ is not completed)
+            meas = attached(readings[i // 2])
+            return (pose_at_size(rays, meas, fused.size + fused.std, up=up) if i % 2 else
+                    estimate_face(rays, meas, method="exact", cube_size=fused.size, up=up))
         fits = fork_map(fit, 2 * len(readings), workers,
                         cost=[expected_work(readings[i // 2][1], "exact") for i in range(2 * len(readings))],
                         progress=None if progress is None else lambda done, n: progress(
