@@ -158,7 +158,8 @@ def print_table(console, result: dict, truth: dict | None = None) -> None:
     misfits = [c.get("edge_misfit_px") for c in result["cubes"]]  # `exact`'s; None for the other methods
     flags = [edge_misfit_flagged(m) for m in misfits]
     for i, (c, tc, misfit, flagged) in enumerate(zip(result["cubes"], matches, misfits, flags)):
-        row = [str(i), f"{c['depth']:.4f}", f"{c['uncertainty']['depth']:.4f}", f"{c['size']:.4f}",
+        row = [str(i), f"{c['depth']:.4f}", f"{c['uncertainty']['depth']:.4f}",
+               f"{c['size']:.4f}" + (" *" if c.get("size_set_aside") else ""),
                "[" + ", ".join(f"{x:+.3f}" for x in c["center"]) + "]", f"{c['aspect_ratio']:.3f}",
                "—" if misfit is None else f"{misfit:.2f}" + (" !" if flagged else "")]
         if truth:
@@ -174,6 +175,11 @@ def print_table(console, result: dict, truth: dict | None = None) -> None:
     if any(flags):
         console.print(f"! the face's edges miss the fitted square by more than {EDGE_MISFIT_WARN_PX} px rms: "
                       "its outline is likely off somewhere and ±σ may be short")
+    aside = [f"#{i}" for i, c in enumerate(result["cubes"]) if c.get("size_set_aside")]
+    if aside:  # exact_shape_prior
+        console.print(f"* {', '.join(aside)}: its own size lay over 3 σ from the others' and was left out of their "
+                      "common size; read at it all the same, its ±σ covers its own reading too. Are the cubes all "
+                      "one size?")
     for r in result.get("refused", []):
         console.print(f"refused cube at {r['bbox_px']}: {r['reason']}")
 

@@ -373,7 +373,9 @@ class CubeEstimate:
     (``exact`` only): per front side (left, right, top, bottom), its edge points' (count, rms misfit in px,
     Durbin–Watson statistic of their misfits in their order along the side: Σ(r_i+1 − r_i)² / Σ r_i², about
     2 for misfits that are noise from point to point, near 0 for a side the model misses smoothly along its
-    length; NaN under 3 points or with no misfit at all).
+    length; NaN under 3 points or with no misfit at all). size_set_aside (``exact_shape_prior`` only): the
+    cube's own size lay over 3 σ from the others' and was left out of their common size (`common_size`'s
+    `reject`); it is read at that size all the same, its σ covering its own reading too.
     """
 
     method: str
@@ -387,6 +389,7 @@ class CubeEstimate:
     xslit: dict = field(default_factory=dict)
     rms_residual: float = float("nan")
     side_misfits: tuple = ()
+    size_set_aside: bool = False
 
     def __bool__(self) -> bool:
         return True
@@ -1706,19 +1709,22 @@ def estimate_faces_shape_prior(rays: RayFunction, measurements, seed: int = 0) -
     return out
 
 
-def at_common_size(at, beyond, fused) -> CubeEstimate | FailedEstimate:
+def at_common_size(at, beyond, fused, alone=None) -> CubeEstimate | FailedEstimate:
     """One face's `exact_shape_prior` estimate: `at`, its `exact` fit at the common size `fused`
     (`depth.priors.CommonSize`), with its σ completed by that size's, carried through the fit: `beyond` is the
     same face fitted at the size plus its σ, and the depth and centre add what that moved them by. Its std's
-    'scale' is the factor the common size's σ was scaled by where the sizes disagree (as `shape_prior`'s). A
-    `FailedEstimate` where either fit failed."""
+    'scale' is the factor the common size's σ was scaled by where the sizes disagree (as `shape_prior`'s). With
+    `alone`, the face's own `exact` reading, whose size was set aside from the common size: the σ covers that
+    reading too (an even mixture, `_covering`), and the estimate says so (`size_set_aside`). A `FailedEstimate`
+    where either fit failed."""
     for fit, size in ((at, fused.size), (beyond, fused.size + fused.std)):
         if not fit:
             return FailedEstimate("exact_shape_prior", f"at the common size {size * 1e3:.2f} mm: {fit.reason}")
     std = {**at.std, "z": float(np.hypot(at.std["z"], beyond.z - at.z)), "size": float(fused.std),
            "center": float(np.hypot(at.std["center"], np.linalg.norm(beyond.center - at.center))),
            "scale": max(1.0, float(fused.birge_ratio))}
-    return replace(at, method="exact_shape_prior", std=std)
+    est = replace(at, method="exact_shape_prior", std=std)
+    return est if alone is None else replace(_covering(est, alone, 0.5), size_set_aside=True)
 
 
 def pose_at_size(rays: RayFunction, meas: FaceMeasurement, size: float, up=None, seed: int = 0):
@@ -1731,14 +1737,19 @@ def pose_at_size(rays: RayFunction, meas: FaceMeasurement, size: float, up=None,
 
 def common_size_of(estimates):
     """The common size (`depth.priors.common_size`) of cubes of one size, from the sizes of their `exact`
-    estimates that have a σ (a positive number; the others weigh nothing): a `depth.priors.CommonSize`, or a
-    `FailedEstimate` where fewer than 2 have one."""
+    estimates that have a σ (a positive number; the others weigh nothing): a `depth.priors.CommonSize` whose
+    `used` runs over `estimates`, and the estimates whose size was set aside (a list of bools); or a
+    `FailedEstimate` where fewer than 2 have a σ."""
     from depth.priors import common_size
-    weighed = [e for e in estimates if 0.0 < e.std.get("size", 0.0) < np.inf]
+    weighed = [i for i, e in enumerate(estimates) if 0.0 < e.std.get("size", 0.0) < np.inf]
     if len(weighed) < 2:
         return FailedEstimate("exact_shape_prior", f"the shape prior needs at least 2 cubes read with a size σ; "
                                                    f"{len(weighed)} {'was' if len(weighed) == 1 else 'were'}")
-    return common_size([e.size for e in weighed], [e.std["size"] for e in weighed])
+    fused = common_size([estimates[i].size for i in weighed], [estimates[i].std["size"] for i in weighed])
+    used = np.zeros(len(estimates), dtype=bool)
+    used[weighed] = fused.used
+    set_aside = [bool(i in weighed and not used[i]) for i in range(len(estimates))]
+    return replace(fused, used=used), set_aside
 
 
 def estimate_faces_exact_shape_prior(rays: RayFunction, measurements, up=None, seed: int = 0) -> list:
@@ -1751,11 +1762,15 @@ def estimate_faces_exact_shape_prior(rays: RayFunction, measurements, up=None, s
     measurement (`FailedEstimate` where a fit fails, or for all where fewer than 2 sizes have a σ).
     """
     alone = [estimate_face(rays, m, "exact", seed=seed, up=up) for m in measurements]
-    fused = common_size_of([e for e in alone if e])
-    if not fused:
-        return [fused if e else FailedEstimate("exact_shape_prior", e.reason) for e in alone]
+    read = [e for e in alone if e]
+    common = common_size_of(read)
+    if not common:
+        return [common if e else FailedEstimate("exact_shape_prior", e.reason) for e in alone]
+    fused, set_aside = common
+    aside = {id(e) for e, out in zip(read, set_aside) if out}
     return [at_common_size(estimate_face(rays, m, "exact", cube_size=fused.size, seed=seed, up=up),
-                           pose_at_size(rays, m, fused.size + fused.std, up=up, seed=seed), fused)
+                           pose_at_size(rays, m, fused.size + fused.std, up=up, seed=seed), fused,
+                           e if id(e) in aside else None)
             if e else FailedEstimate("exact_shape_prior", e.reason) for m, e in zip(measurements, alone)]
 
 

@@ -62,6 +62,7 @@ class CubeResult:
             "uncertainty": {"depth": float(self.depth_std), "size": float(e.std.get("size", np.nan)),
                             "center": float(e.std.get("center", np.nan))},
             **({"uncertainty_scale": float(e.std["scale"])} if "scale" in e.std else {}),
+            **({"size_set_aside": bool(e.size_set_aside)} if e.method == "exact_shape_prior" else {}),
             "front_face_normal": [float(x) for x in e.normal],
             "local_xslit": e.xslit,
             "edge_points": int(self.edge_points),
@@ -1012,9 +1013,10 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         own = meas.blob_mask is sources[k][0].mask
         return est, outline, reason, bbox, (k, _bare(meas), None if own else np.packbits(meas.blob_mask))
 
-    def refit(readings, fused):
+    def refit(readings, fused, alone):
         """The faces `readings` (`settled`'s) fitted by `exact` at the common size `fused` and at it plus its σ (in
-        worker processes): per face, its estimate (`at_common_size`), or the reason it is refused."""
+        worker processes): per face, its estimate (`at_common_size`; `alone`: per face, its own `exact` reading
+        where its size was set aside, else None), or the reason it is refused."""
         def attached(reading):
             k, meas, packed = reading
             blob = sources[k][0].mask if packed is None else np.unpackbits(
@@ -1030,8 +1032,8 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                         progress=None if progress is None else lambda done, n: progress(
                             (2 * n + done) * len(detections) // n, 3 * len(detections)))
         out = []
-        for reading, at, beyond in zip(readings, fits[::2], fits[1::2]):
-            est = at_common_size(at, beyond, fused)
+        for reading, at, beyond, own in zip(readings, fits[::2], fits[1::2], alone):
+            est = at_common_size(at, beyond, fused, own)
             if not est:
                 out.append(f"{est.method}: {est.reason}")
             elif reason := verdict(reading[0], at, attached(reading), fused.size):  # (`at`: exact's, as checks read)
@@ -1044,11 +1046,13 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         """`_one_per_face`'s results with each cube read fitted again at the common size of all (exact_shape_prior),
         as `estimate_faces_exact_shape_prior` does; every cube refused where fewer than 2 sizes have a σ."""
         kept = [i for i, r in enumerate(results) if not r[2]]
-        fused = common_size_of([results[i][0] for i in kept])  # (a face whose size has no σ is fitted at it too)
-        if not fused:
-            return [r if r[2] else (r[0], r[1], f"{fused.method}: {fused.reason}", r[3], None) for r in results]
+        common = common_size_of([results[i][0] for i in kept])  # (a face whose size has no σ is fitted at it too)
+        if not common:
+            return [r if r[2] else (r[0], r[1], f"{common.method}: {common.reason}", r[3], None) for r in results]
+        fused, set_aside = common
+        alone = [results[i][0] if out else None for i, out in zip(kept, set_aside)]
         out = list(results)
-        for i, again in zip(kept, refit([results[i][4] for i in kept], fused)):
+        for i, again in zip(kept, refit([results[i][4] for i in kept], fused, alone)):
             est, outline, _, bbox, _ = results[i]
             out[i] = (est, outline, again, bbox, None) if isinstance(again, str) else (again, outline, None, bbox, None)
         return out

@@ -108,6 +108,29 @@ def test_the_table_flags_a_face_whose_edges_no_square_explains(scene):
         assert (f"{2.0 * EDGE_MISFIT_WARN_PX:.2f} !" in text) == flagged and "0.05 !" not in text
 
 
+def test_the_table_marks_a_cube_whose_size_was_set_aside_from_the_common_size(scene):
+    """exact_shape_prior: a cube whose own size was left out of the cubes' common size is marked by its size,
+    with a line asking whether the cubes are all one size; none marked, no such line."""
+    import io
+
+    from rich.console import Console
+
+    from catadioptric.reconstruct import print_table
+    out = scene / "aside.json"
+    assert main(["reconstruct", str(scene / "mirror.png"), "--method", "exact_shape_prior", "-o", str(out)]) == 0
+    result = json.loads(out.read_text())
+    assert [c["size_set_aside"] for c in result["cubes"]] == [False, False]
+    for aside in ((False, False), (False, True)):
+        for c, a in zip(result["cubes"], aside):
+            c["size_set_aside"] = a
+        buf = io.StringIO()
+        print_table(Console(file=buf, width=200), result)
+        text = buf.getvalue()
+        assert ("* #1: its own size lay over 3 σ from the others'" in text) == any(aside)
+        assert ("Are the cubes all one size?" in text) == any(aside)
+        assert text.count(" *") == sum(aside)
+
+
 def _bad(capsys, tmp_path, argv, message):
     before = sorted(p.name for p in tmp_path.iterdir())
     code = main(argv)

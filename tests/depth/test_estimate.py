@@ -419,6 +419,8 @@ def test_exact_shape_prior_recovers_identical_cubes_exactly(rig):
 
 
 def test_at_common_size_adds_the_common_size_sigma_to_the_fit_s_own():
+    from dataclasses import replace
+
     from depth.estimate import CubeEstimate, FailedEstimate, at_common_size
     from depth.priors import CommonSize
 
@@ -438,6 +440,13 @@ def test_at_common_size_adds_the_common_size_sigma_to_the_fit_s_own():
     failed = at_common_size(at, FailedEstimate("exact", "no pose fits"), fused)
     assert not failed and failed.method == "exact_shape_prior"
     assert failed.reason == "at the common size 40.40 mm: no pose fits"
+    assert not out.size_set_aside
+    # its own reading set aside (3 cm deeper, 4 mm larger): the σ covers it as an even mixture, σ² + (d/2)²
+    alone = replace(at, center=np.array([0.1, 0.0, 0.53]), size=0.044, z=0.53)
+    aside = at_common_size(at, beyond, fused, alone)
+    assert aside.size_set_aside and aside.size == 0.04 and np.array_equal(aside.center, at.center)
+    assert aside.std["z"] == pytest.approx(np.hypot(0.005, 0.015), rel=1e-12)
+    assert aside.std["size"] == pytest.approx(np.hypot(0.0004, 0.002), rel=1e-12)
 
 
 def test_exact_shape_prior_gives_a_narrow_face_the_scale_of_the_others(rig):

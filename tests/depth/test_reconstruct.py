@@ -462,6 +462,34 @@ def test_exact_shape_prior_counts_its_fits_at_the_common_size_in_the_progress(ri
         assert done == sorted(done) and done[-1] == steps * blobs and done[0] <= blobs
 
 
+def test_exact_shape_prior_sets_aside_a_cube_of_another_size_and_says_so(rig):
+    """Three 4 cm cubes and one 4.6 cm across, 0.6 m from the axis: `exact` reads its size 4.77 ± 0.2 cm, over 3 σ
+    from the others', so it is left out of their common size (within 1 % of 4 cm). It is still read at that size,
+    which puts it nearer than it is (at 0.47 m), but its σ covers its own reading too, and its result says its size
+    was set aside; the others' do not. (Larger, at 5 cm, no 4 cm cube fits its edges there: refused.)"""
+    from raytrace.render import linear_to_srgb8, render
+    from raytrace.scene import DirectionalLight, Scene
+    from depth.reconstruct import reconstruct
+    _, cubes = _identical_cubes_image(rig, [(0.4, -45.0, 0.0), (0.45, 40.0, 10.0), (1.0, 15.0, 0.0)])
+    big = replace(rig.cube(0.6, -25.0, size=0.046), color=(0.8, 0.7, 0.1))
+    light = DirectionalLight(to_light=np.array([0.3, 1.0, 0.5]), intensity=0.8, ambient=0.3)
+    scene = Scene(mirror=rig.mirror, objects=tuple(cubes) + (big,), light=light, background=(0.6, 0.6, 0.6))
+    image = linear_to_srgb8(render(scene, rig.camera, spp=16, seed=0).image)
+    rec = reconstruct(image, rig.camera, rig.mirror, method="exact_shape_prior")
+    assert len(rec.cubes) == 4 and not rec.refused, [r.reason for r in rec.refused]
+    aside = [c for c in rec.cubes if c.to_dict()["size_set_aside"]]
+    assert len(aside) == 1
+    found = aside[0]
+    x, _, z = found.estimate.center
+    assert np.degrees(np.arctan2(x, z)) == pytest.approx(-25.0, abs=2.0)  # the 4.6 cm cube's direction
+    assert found.depth < rig.depth(big) - 0.05 and abs(found.depth - rig.depth(big)) < 3.0 * found.depth_std
+    for found in rec.cubes:
+        assert abs(found.estimate.size / 0.04 - 1.0) < 0.01
+        if found is not aside[0]:
+            cube = min(cubes, key=lambda q: np.linalg.norm(found.estimate.center - q.center))
+            assert abs(found.depth - rig.depth(cube)) < 3.0 * found.depth_std
+
+
 def test_exact_shape_prior_refuses_a_lone_cube_and_a_given_size(rig):
     from depth.errors import DepthError
     from depth.reconstruct import reconstruct
