@@ -175,8 +175,9 @@ def _table_html(result: dict, truth: dict | None, colors) -> str:
     for i, (c, t) in enumerate(zip(cubes, matches)):
         lx = c.get("local_xslit") or {}
         sw = "#%02x%02x%02x" % tuple(int(255 * v) for v in colors[i])
+        size = _fmt(c["size"]) + (" *" if c.get("size_set_aside") else "")  # (exact_shape_prior: set aside)
         cells = [f'<span class="sw" style="background:{sw}"></span>{i}', _fmt(c["depth"]),
-                 _fmt(c.get("uncertainty", {}).get("depth")), _fmt(c["size"]),
+                 _fmt(c.get("uncertainty", {}).get("depth")), size,
                  "[" + ", ".join(f"{x:+.3f}" for x in c["center"]) + "]", _fmt(c["aspect_ratio"], ".3f"),
                  _fmt(lx.get("z1")), _fmt(lx.get("z2")), _fmt(1e6 * lx.get("rms_ray_distance", np.nan), ".1f"),
                  html.escape(str(c.get("method", result.get("method", ""))))]
@@ -192,6 +193,11 @@ def _table_html(result: dict, truth: dict | None, colors) -> str:
                       for r in result.get("refused", []) if isinstance(r, dict))
     table = ("<table><thead><tr>" + "".join(f"<th>{h}</th>" for h in head) + "</tr></thead><tbody>"
              + "".join(rows) + "</tbody></table>")
+    aside = [f"#{i}" for i, c in enumerate(cubes) if c.get("size_set_aside")]
+    if aside:  # exact_shape_prior
+        table += (f'<p class="note">* {", ".join(aside)}: its own size lay over 3 σ from the others\' and was left '
+                  "out of their common size; read at it all the same, its ±σ covers its own reading too. Are the "
+                  "cubes all one size?</p>")
     if not cubes:
         table = "<p>No cube was recovered.</p>"
     if refused:

@@ -424,3 +424,20 @@ def test_every_image_loads_in_headless_chromium(rep, tmp_path):
     for name, width in loaded.items():
         assert width == read_png(rep / name).shape[1], name
     assert control["missing.png"] == 0
+
+
+def test_report_table_marks_a_size_set_aside_from_the_common_size():
+    # exact_shape_prior: the cube whose own size was left out of the common size is marked, with a note asking
+    # whether the cubes are all one size; none marked, no note
+    from catadioptric.report import _table_html
+
+    def cube(depth, aside):
+        return {"depth": depth, "uncertainty": {"depth": 0.01}, "size": 0.04, "center": [0.0, 0.0, depth],
+                "aspect_ratio": 5.0, "method": "exact_shape_prior", "size_set_aside": aside,
+                "front_face_corners_px": [[0, 0], [1, 0], [1, 1], [0, 1]]}
+    colours = [(1.0, 0.0, 0.0), (0.0, 1.0, 0.0)]
+    for aside in ((False, False), (False, True)):
+        page = _table_html({"cubes": [cube(0.4, aside[0]), cube(0.7, aside[1])], "refused": []}, None, colours)
+        assert ("<td>0.0400 *</td>" in page) == any(aside) and page.count("0.0400 *") == sum(aside)
+        assert ("* #1: its own size lay over 3 σ from the others' and was left out of their common size" in page) \
+            == any(aside)
