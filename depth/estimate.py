@@ -1737,19 +1737,19 @@ def pose_at_size(rays: RayFunction, meas: FaceMeasurement, size: float, up=None,
 
 def common_size_of(estimates):
     """The common size (`depth.priors.common_size`) of cubes of one size, from the sizes of their `exact`
-    estimates that have a σ (a positive number; the others weigh nothing): a `depth.priors.CommonSize` whose
-    `used` runs over `estimates`, and the estimates whose size was set aside (a list of bools); or a
-    `FailedEstimate` where fewer than 2 have a σ."""
+    estimates that have a σ (a positive number; the others, and failed estimates, weigh nothing): (a
+    `depth.priors.CommonSize`, per estimate whether its size was set aside), or a `FailedEstimate` where fewer
+    than 2 have a σ."""
     from depth.priors import common_size
-    weighed = [i for i, e in enumerate(estimates) if 0.0 < e.std.get("size", 0.0) < np.inf]
+    weighed = [i for i, e in enumerate(estimates) if e and 0.0 < e.std.get("size", 0.0) < np.inf]
     if len(weighed) < 2:
         return FailedEstimate("exact_shape_prior", f"the shape prior needs at least 2 cubes read with a size σ; "
                                                    f"{len(weighed)} {'was' if len(weighed) == 1 else 'were'}")
     fused = common_size([estimates[i].size for i in weighed], [estimates[i].std["size"] for i in weighed])
-    used = np.zeros(len(estimates), dtype=bool)
-    used[weighed] = fused.used
-    set_aside = [bool(i in weighed and not used[i]) for i in range(len(estimates))]
-    return replace(fused, used=used), set_aside
+    set_aside = [False] * len(estimates)
+    for i, used in zip(weighed, fused.used):
+        set_aside[i] = not used
+    return fused, set_aside
 
 
 def estimate_faces_exact_shape_prior(rays: RayFunction, measurements, up=None, seed: int = 0) -> list:
@@ -1758,20 +1758,19 @@ def estimate_faces_exact_shape_prior(rays: RayFunction, measurements, up=None, s
     Each face is fitted by `exact` alone; their sizes, weighed by their σ, give the common size
     (`depth.priors.common_size`, which sets aside a size the others disagree with by over 3 σ); each face is
     fitted by `exact` again at that size (`at_common_size`). A narrow face whose own fit hardly fixes its scale
-    takes it from the others. Returns one estimate per
-    measurement (`FailedEstimate` where a fit fails, or for all where fewer than 2 sizes have a σ).
+    takes it from the others. Returns one estimate per measurement (`FailedEstimate` where a fit fails, or for
+    all where fewer than 2 sizes have a σ).
     """
     alone = [estimate_face(rays, m, "exact", seed=seed, up=up) for m in measurements]
-    read = [e for e in alone if e]
-    common = common_size_of(read)
+    common = common_size_of(alone)
     if not common:
         return [common if e else FailedEstimate("exact_shape_prior", e.reason) for e in alone]
     fused, set_aside = common
-    aside = {id(e) for e, out in zip(read, set_aside) if out}
     return [at_common_size(estimate_face(rays, m, "exact", cube_size=fused.size, seed=seed, up=up),
                            pose_at_size(rays, m, fused.size + fused.std, up=up, seed=seed), fused,
-                           e if id(e) in aside else None)
-            if e else FailedEstimate("exact_shape_prior", e.reason) for m, e in zip(measurements, alone)]
+                           e if aside else None)
+            if e else FailedEstimate("exact_shape_prior", e.reason)
+            for m, e, aside in zip(measurements, alone, set_aside)]
 
 
 def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact",

@@ -951,7 +951,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
 
     def settled(k, est=None):
         """Face k's (estimate, outline, reason refused or None, bbox, reading); est: a joint estimate
-        (shape_prior), taken as it is, else the face is estimated here. The reading, for `_common` alone (else
+        (shape_prior), taken as it is, else the face is estimated here. The reading, for `common` alone (else
         None): (k, the measurement estimated, bare, and its blob mask packed where it is not face k's blob)."""
         meas, _, outline = measured[k]
         if est is None:
