@@ -175,13 +175,22 @@ def print_table(console, result: dict, truth: dict | None = None) -> None:
     if any(flags):
         console.print(f"! the face's edges miss the fitted square by more than {EDGE_MISFIT_WARN_PX} px rms: "
                       "its outline is likely off somewhere and ±σ may be short")
-    aside = [f"#{i}" for i, c in enumerate(result["cubes"]) if c.get("size_set_aside")]
-    if aside:  # exact_shape_prior
-        console.print(f"* {', '.join(aside)}: its own size lay over 3 σ from the others' and was left out of their "
-                      "common size; read at it all the same, its ±σ covers its own reading too. Are the cubes all "
-                      "one size?")
+    if note := size_set_aside_note(result["cubes"]):
+        console.print(note)
     for r in result.get("refused", []):
         console.print(f"refused cube at {r['bbox_px']}: {r['reason']}")
+
+
+def size_set_aside_note(cubes: list) -> str | None:
+    """The line that says which result cubes (`exact_shape_prior`'s) had their own size set aside from the common
+    size, and what that means; None where none had."""
+    aside = [f"#{i}" for i, c in enumerate(cubes) if c.get("size_set_aside")]
+    if not aside:
+        return None
+    from depth.priors import COMMON_SIZE_REJECT
+    return (f"* {', '.join(aside)}: its own size lay over {COMMON_SIZE_REJECT:g} σ from the others' and was left out "
+            "of their common size; read at it all the same, its ±σ covers its own reading too. Are the cubes all "
+            "one size?")
 
 
 def match_truth(result: dict, truth: dict) -> list:

@@ -164,7 +164,7 @@ def _fmt(x, spec=".4f"):
 
 
 def _table_html(result: dict, truth: dict | None, colors) -> str:
-    from catadioptric.reconstruct import match_truth
+    from catadioptric.reconstruct import match_truth, size_set_aside_note
     cubes = result["cubes"]
     matches = match_truth(result, truth) if truth else [None] * len(cubes)
     head = ["#", "depth (m)", "±σ (m)", "size (m)", "centre (m)", "AR r_i", "z1 (m)", "z2 (m)",
@@ -193,11 +193,8 @@ def _table_html(result: dict, truth: dict | None, colors) -> str:
                       for r in result.get("refused", []) if isinstance(r, dict))
     table = ("<table><thead><tr>" + "".join(f"<th>{h}</th>" for h in head) + "</tr></thead><tbody>"
              + "".join(rows) + "</tbody></table>")
-    aside = [f"#{i}" for i, c in enumerate(cubes) if c.get("size_set_aside")]
-    if aside:  # exact_shape_prior
-        table += (f'<p class="note">* {", ".join(aside)}: its own size lay over 3 σ from the others\' and was left '
-                  "out of their common size; read at it all the same, its ±σ covers its own reading too. Are the "
-                  "cubes all one size?</p>")
+    if note := size_set_aside_note(cubes):  # exact_shape_prior
+        table += f'<p class="note">{html.escape(note, quote=False)}</p>'
     if not cubes:
         table = "<p>No cube was recovered.</p>"
     if refused:
