@@ -53,6 +53,11 @@ def test_exact_estimator_recovers_any_pose_exactly(rig, distance, azimuth, yaw, 
     # The recovered front-face normal points at the mirror like the true one.
     true_normal = cube.rotation @ np.array([0.0, 0.0, 1.0])
     assert np.dot(est.normal, true_normal) > 1 - 1e-9
+    # at the known edge length, which is then no parameter of the fit (its σ exactly 0), upright or tilted alike
+    known = estimate_face(rig.rays, rig.measure(cube), method="exact", cube_size=cube.size, up=rig.mirror.axis)
+    assert known, getattr(known, "reason", "")
+    assert centre_error(rig, known, cube) < 1e-6 and known.size == cube.size and known.std["size"] == 0.0
+    assert np.dot(known.normal, true_normal) > 1 - 1e-9
 
 
 @given(st.floats(0.45, 0.9), st.floats(-30.0, 30.0), st.floats(0.02, 0.045), st.floats(7.5, 12.0),
