@@ -39,7 +39,7 @@ from depth.xslit import XSlit
 from raytrace.scene import Cube
 
 __all__ = ["METHODS", "FaceMeasurement", "CubeEstimate", "FailedEstimate", "estimate_face",
-           "estimate_faces_shape_prior", "estimate_faces_exact_shape_prior", "common_size_of", "pose_at_size",
+           "estimate_faces_shape_prior", "estimate_faces_exact_shape_prior", "common_size_of",
            "at_common_size", "expected_work",
            "LocalXSlit", "local_xslit"]
 
@@ -385,7 +385,9 @@ class CubeEstimate:
     2 for misfits that are noise from point to point, near 0 for a side the model misses smoothly along its
     length; NaN under 3 points or with no misfit at all). size_set_aside (``exact_shape_prior`` only): the
     cube's own size lay over 3 σ from the others' and was left out of their common size (`common_size`'s
-    `reject`); it is read at that size all the same, its σ covering its own reading too.
+    `reject`); it is read at that size all the same, its σ covering its own reading too. size_slope (``exact``
+    at a known size only): how the centre ('center', (3,)) and z ('z') move per metre of that size, the pose
+    re-solved to first order; `exact_shape_prior` carries the common size's σ through it.
     """
 
     method: str
@@ -400,6 +402,7 @@ class CubeEstimate:
     rms_residual: float = float("nan")
     side_misfits: tuple = ()
     size_set_aside: bool = False
+    size_slope: dict | None = None
 
     def __bool__(self) -> bool:
         return True
@@ -970,7 +973,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         pose x (7,): (3,), (3,), a scalar."""
         xs = np.atleast_2d(x)
         c = c0 + xs[:, 3:6] * scale
-        s = s0 * np.exp(xs[:, 6]) if cube_size is None else np.full(len(xs), cube_size)
+        s = s0 * np.exp(xs[:, 6])  # (x[6] = 0 at a known size, but for its `size_slope`)
         return (xs[:, :3], c, s) if np.ndim(x) == 2 else (xs[0, :3], c[0], float(s[0]))
 
     # the points come side by side, the front face's four sides first (sid < 4), then the back sides: each
@@ -1576,16 +1579,41 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         return np.r_[ctr, ss, local.to_frame(ctr[None])[0, 2]]
     f0 = derived(x_best)
 
-    def propagated(x, cov_x):
-        """The first-order σ of the centre, size and z of the reading at pose x with covariance cov_x."""
+    def derived_jac(x):
+        """(5, 7): the centre, size and z (`derived`) differentiated by the pose parameters at x."""
         jac_d = np.empty((5, 7))
         for k in range(7):
             dx = np.zeros(7)
             dx[k] = 1e-6
             jac_d[:, k] = (derived(x + dx) - derived(x - dx)) / 2e-6
+        return jac_d
+
+    def propagated(x, cov_x):
+        """The first-order σ of the centre, size and z of the reading at pose x with covariance cov_x."""
+        jac_d = derived_jac(x)
         sd = np.sqrt(np.maximum(np.diag(jac_d @ cov_x @ jac_d.T), 0.0))
         return {"z": float(sd[4]), "size": float(sd[3]), "center": float(np.sqrt(np.sum(sd[:3] ** 2)))}
     first_order = propagated(x_best, cov)
+
+    def size_slope():
+        """At a known edge length, how this reading's centre and z move per metre of it: (3,) and a scalar. The
+        pose is re-solved to first order as the size moves (the implicit function theorem on the soft-l1 loss's
+        normal equations, each residual weighted by its curvature (1 + r²)^(-3/2), at the reading's pixel scales
+        and faces), its parameters those the reading was fitted over (upright, or tilted)."""
+        free = tilted if upright_reading is not None else upright
+        cols = np.r_[free, 6]
+        h = (x_best[cols] + _FD_STEP * np.maximum(1.0, np.abs(x_best[cols]))) - x_best[cols]
+        poses = np.repeat(x_best[None], len(cols) + 1, axis=0)
+        poses[np.arange(1, len(cols) + 1), cols] += h
+        r = resids(poses)
+        jac = ((r[1:] - r[0]) / h[:, None]).T
+        w = (1.0 + r[0] ** 2) ** -0.75  # the square root of the curvature
+        dx = np.zeros(7)
+        dx[free] = -np.linalg.lstsq(w[:, None] * jac[:, :-1], w * jac[:, -1], rcond=None)[0]
+        dx[6] = 1.0  # per unit of log size: per metre, divided by the size
+        slope = derived_jac(x_best) @ dx / s
+        return {"center": slope[:3], "z": float(slope[4])}
+    slope = None if cube_size is None else size_slope()
 
     def complete_std(std):
         """The first-order σ widened by the turn profiles and by a reading the silhouette overruled."""
@@ -1661,7 +1689,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     def estimate(std):
         return CubeEstimate(method="exact", center=f0[:3], size=float(s), z=float(f0[4]), front_face_center=c,
                             normal=normal, aspect_ratio=start.aspect_ratio, std=std,
-                            xslit=start.xslit, rms_residual=rms, side_misfits=side_misfits)
+                            xslit=start.xslit, rms_residual=rms, side_misfits=side_misfits, size_slope=slope)
 
     @np.errstate(over="ignore", invalid="ignore", divide="ignore")  # as `_exact`'s, when called after it
     def completed():
@@ -1729,30 +1757,22 @@ def estimate_faces_shape_prior(rays: RayFunction, measurements, seed: int = 0) -
     return out
 
 
-def at_common_size(at, beyond, fused, alone=None) -> CubeEstimate | FailedEstimate:
+def at_common_size(at, fused, alone=None) -> CubeEstimate | FailedEstimate:
     """One face's `exact_shape_prior` estimate: `at`, its `exact` fit at the common size `fused`
-    (`depth.priors.CommonSize`), with its σ completed by that size's, carried through the fit: `beyond` is the
-    same face fitted at the size plus its σ, and the depth and centre add what that moved them by. Its std's
-    'scale' is the factor the common size's σ was scaled by where the sizes disagree (as `shape_prior`'s). With
-    `alone`, the face's own `exact` reading, whose size was set aside from the common size: the σ covers that
-    reading too (an even mixture, `_covering`), and the estimate says so (`size_set_aside`). A `FailedEstimate`
-    where either fit failed."""
-    for fit, size in ((at, fused.size), (beyond, fused.size + fused.std)):
-        if not fit:
-            return FailedEstimate("exact_shape_prior", f"at the common size {size * 1e3:.2f} mm: {fit.reason}")
-    std = {**at.std, "z": float(np.hypot(at.std["z"], beyond.z - at.z)), "size": float(fused.std),
-           "center": float(np.hypot(at.std["center"], np.linalg.norm(beyond.center - at.center))),
+    (`depth.priors.CommonSize`), with its σ completed by that size's, carried through the fit: the depth and
+    centre add the size's σ times how they move with it (`CubeEstimate.size_slope`). Its std's 'scale' is the
+    factor the common size's σ was scaled by where the sizes disagree (as `shape_prior`'s). With `alone`, the
+    face's own `exact` reading, whose size was set aside from the common size: the σ covers that reading too (an
+    even mixture, `_covering`), and the estimate says so (`size_set_aside`). A `FailedEstimate` where the fit
+    failed."""
+    if not at:
+        return FailedEstimate("exact_shape_prior", f"at the common size {fused.size * 1e3:.2f} mm: {at.reason}")
+    slope = at.size_slope
+    std = {**at.std, "z": float(np.hypot(at.std["z"], slope["z"] * fused.std)), "size": float(fused.std),
+           "center": float(np.hypot(at.std["center"], np.linalg.norm(slope["center"]) * fused.std)),
            "scale": max(1.0, float(fused.birge_ratio))}
     est = replace(at, method="exact_shape_prior", std=std)
     return est if alone is None else replace(_covering(est, alone, 0.5), size_set_aside=True)
-
-
-def pose_at_size(rays: RayFunction, meas: FaceMeasurement, size: float, up=None, seed: int = 0):
-    """`exact`'s reading of the face at the known edge length `size`, its σ left first-order (the turn profile
-    that completes it is not run: `estimate_face`'s `defer`); the pose, centre and depth are the complete
-    reading's. For `at_common_size`'s `beyond`, whose σ is not read."""
-    reading = estimate_face(rays, meas, "exact", cube_size=size, seed=seed, up=up, defer=True)
-    return reading[0] if isinstance(reading, tuple) else reading
 
 
 def common_size_of(estimates):
@@ -1786,8 +1806,7 @@ def estimate_faces_exact_shape_prior(rays: RayFunction, measurements, up=None, s
     if not common:
         return [common if e else FailedEstimate("exact_shape_prior", e.reason) for e in alone]
     fused, set_aside = common
-    return [at_common_size(estimate_face(rays, m, "exact", cube_size=fused.size, seed=seed, up=up),
-                           pose_at_size(rays, m, fused.size + fused.std, up=up, seed=seed), fused,
+    return [at_common_size(estimate_face(rays, m, "exact", cube_size=fused.size, seed=seed, up=up), fused,
                            e if aside else None)
             if e else FailedEstimate("exact_shape_prior", e.reason)
             for m, e, aside in zip(measurements, alone, set_aside)]

@@ -19,7 +19,7 @@ from depth.errors import DepthError
 from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED, METHODS,
                             NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, SOLVER_MODULES, CubeEstimate,
                             FaceMeasurement, _covering, _silhouette_disagreement, at_common_size, common_size_of,
-                            estimate_face, estimate_faces_shape_prior, expected_work, pose_at_size)
+                            estimate_face, estimate_faces_shape_prior, expected_work)
 from depth.workers import SharedMemory, fork_chain, fork_helper, fork_map, import_in_background
 from raytrace.scene import Cube
 
@@ -1014,26 +1014,23 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         return est, outline, reason, bbox, (k, _bare(meas), None if own else np.packbits(meas.blob_mask))
 
     def refit(readings, fused, alone):
-        """The faces `readings` (`settled`'s) fitted by `exact` at the common size `fused` and at it plus its σ (in
-        worker processes): per face, its estimate (`at_common_size`; `alone`: per face, its own `exact` reading
-        where its size was set aside, else None), or the reason it is refused."""
+        """The faces `readings` (`settled`'s) fitted by `exact` at the common size `fused` (in worker processes): per
+        face, its estimate (`at_common_size`; `alone`: per face, its own `exact` reading where its size was set
+        aside, else None), or the reason it is refused."""
         def attached(reading):
             k, meas, packed = reading
             blob = sources[k][0].mask if packed is None else np.unpackbits(
                 packed, count=mask.size).reshape(mask.shape).view(bool)
             return _attached(meas, blob, img)
 
-        def fit(i):  # (at the size plus its σ only the pose is read: its σ is not completed)
-            meas = attached(readings[i // 2])
-            return (pose_at_size(rays, meas, fused.size + fused.std, up=up) if i % 2 else
-                    estimate_face(rays, meas, method="exact", cube_size=fused.size, up=up))
-        fits = fork_map(fit, 2 * len(readings), workers,
-                        cost=[expected_work(readings[i // 2][1], "exact") for i in range(2 * len(readings))],
+        def fit(i):
+            return estimate_face(rays, attached(readings[i]), method="exact", cube_size=fused.size, up=up)
+        fits = fork_map(fit, len(readings), workers, cost=[expected_work(meas, "exact") for _, meas, _ in readings],
                         progress=None if progress is None else lambda done, n: progress(
                             (2 * n + done) * len(detections) // n, 3 * len(detections)))
         out = []
-        for reading, at, beyond, own in zip(readings, fits[::2], fits[1::2], alone):
-            est = at_common_size(at, beyond, fused, own)
+        for reading, at, own in zip(readings, fits, alone):
+            est = at_common_size(at, fused, own)
             if not est:
                 out.append(f"{est.method}: {est.reason}")
             elif reason := verdict(reading[0], at, attached(reading), fused.size):  # (`at`: exact's, as checks read)
