@@ -202,7 +202,8 @@ def _cmd_reconstruct(args) -> int:
     with Progress("outlining and estimating cubes") as bar:
         setup, setup_path, image, rec = rc.run_reconstruction(args.image, args.setup, args.method,
                                                               args.cube_size, progress=bar,
-                                                              blur_domain=args.blur_domain, workers=workers)
+                                                              blur_domain=args.blur_domain, workers=workers,
+                                                              cube_size_std=args.cube_size_std)
     result = rc.result_dict(args.image, setup_path, rec)
     truth = _truth_beside(args.image)
     overlay = rc.draw_overlay(image, rec) if args.overlay else None
@@ -298,6 +299,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("image", metavar="IMAGE.png")
     r.add_argument("--setup", metavar="SETUP.toml")
     r.add_argument("--cube-size", type=float, metavar="S")
+    r.add_argument("--cube-size-std", type=float, metavar="SD",
+                   help="the σ of --cube-size (m), carried through the exact estimator's fit into each depth's σ")
     r.add_argument("--method", default=None,
                    help="exact (default), ddar, dds, shape_prior (the paper's, for cubes of one size) or "
                         "exact_shape_prior (cubes of one size: each fitted by exact at their common size)")

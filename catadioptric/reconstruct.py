@@ -52,17 +52,18 @@ def default_setup_path(image_path) -> Path:
 
 
 def run_reconstruction(image_path, setup_path=None, method=None, cube_size=None, progress=None, blur_domain=None,
-                       workers=None):
+                       workers=None, cube_size_std=None):
     """Validate the inputs and reconstruct (the faces on `workers` processes, default every core); returns
     (setup, setup_path, image, Reconstruction)."""
     from depth.reconstruct import helper_started
     # `reconstruct`'s helper process forked first, before any thread starts here: it imports the estimators'
     # modules (0.5–0.6 s) while the inputs are read and the cubes detected; ended where the inputs are refused
     with helper_started():
-        return _run_reconstruction(image_path, setup_path, method, cube_size, progress, blur_domain, workers)
+        return _run_reconstruction(image_path, setup_path, method, cube_size, progress, blur_domain, workers,
+                                   cube_size_std)
 
 
-def _run_reconstruction(image_path, setup_path, method, cube_size, progress, blur_domain, workers):
+def _run_reconstruction(image_path, setup_path, method, cube_size, progress, blur_domain, workers, cube_size_std):
     from concurrent.futures import ThreadPoolExecutor
     with ThreadPoolExecutor(1) as reader:
         # the image decoded (by OpenCV, which lets go of the GIL: 40 ms for a 2048×1536 PNG) while the
@@ -81,6 +82,13 @@ def _run_reconstruction(image_path, setup_path, method, cube_size, progress, blu
     if cube_size is not None and method == "exact_shape_prior":
         raise CatadioptricError("--cube-size: exact_shape_prior estimates the cubes' common size; with a known "
                                 "size use --method exact")
+    if cube_size_std is not None and not (np.isfinite(cube_size_std) and cube_size_std >= 0):
+        raise CatadioptricError(f"--cube-size-std: expected the σ of the edge length in metres, >= 0, "
+                                f"got {cube_size_std}")
+    if cube_size_std is not None and (cube_size is None or method != "exact"):
+        raise CatadioptricError("--cube-size-std: the σ of a known --cube-size, carried through the exact "
+                                "estimator's fit: give --cube-size and --method exact"
+                                + ("" if cube_size is None else f", not {method}"))
     setup_path = Path(setup_path) if setup_path else default_setup_path(image_path)
     image = reading.result()
     setup = load_setup(setup_path)
@@ -92,7 +100,7 @@ def _run_reconstruction(image_path, setup_path, method, cube_size, progress, blu
     try:
         rec = reconstruct(image, setup.camera.build(), setup.mirror.build(), method=method,
                           cube_size=cube_size, progress=progress, compressed=is_jpeg(image_path),
-                          blur_domain=blur_domain, workers=workers)
+                          blur_domain=blur_domain, workers=workers, cube_size_std=cube_size_std)
     except DepthError as exc:
         raise CatadioptricError(f"{image_path}: {exc}") from None
     return setup, setup_path, image, rec

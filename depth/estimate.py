@@ -39,7 +39,7 @@ from depth.xslit import XSlit
 from raytrace.scene import Cube
 
 __all__ = ["METHODS", "FaceMeasurement", "CubeEstimate", "FailedEstimate", "estimate_face",
-           "estimate_faces_shape_prior", "estimate_faces_exact_shape_prior", "common_size_of",
+           "estimate_faces_shape_prior", "estimate_faces_exact_shape_prior", "common_size_of", "with_size_std",
            "at_common_size", "expected_work",
            "LocalXSlit", "local_xslit"]
 
@@ -1767,12 +1767,19 @@ def at_common_size(at, fused, alone=None) -> CubeEstimate | FailedEstimate:
     failed."""
     if not at:
         return FailedEstimate("exact_shape_prior", f"at the common size {fused.size * 1e3:.2f} mm: {at.reason}")
-    slope = at.size_slope
-    std = {**at.std, "z": float(np.hypot(at.std["z"], slope["z"] * fused.std)), "size": float(fused.std),
-           "center": float(np.hypot(at.std["center"], np.linalg.norm(slope["center"]) * fused.std)),
-           "scale": max(1.0, float(fused.birge_ratio))}
-    est = replace(at, method="exact_shape_prior", std=std)
+    est = with_size_std(at, fused.std)
+    est = replace(est, method="exact_shape_prior", std={**est.std, "scale": max(1.0, float(fused.birge_ratio))})
     return est if alone is None else replace(_covering(est, alone, 0.5), size_set_aside=True)
+
+
+def with_size_std(est: CubeEstimate, size_std: float) -> CubeEstimate:
+    """`est`, `exact`'s reading at a known edge length, with that length's own σ `size_std` (metres) carried
+    through its fit: its depth and centre σ add `size_std` times how far they move per metre of the size
+    (`CubeEstimate.size_slope`), and its size σ is `size_std`."""
+    slope = est.size_slope
+    return replace(est, std={**est.std, "z": float(np.hypot(est.std["z"], slope["z"] * size_std)),
+                             "size": float(size_std),
+                             "center": float(np.hypot(est.std["center"], np.linalg.norm(slope["center"]) * size_std))})
 
 
 def common_size_of(estimates):

@@ -19,7 +19,7 @@ from depth.errors import DepthError
 from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED, METHODS,
                             NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, SOLVER_MODULES, CubeEstimate,
                             FaceMeasurement, _covering, _silhouette_disagreement, at_common_size, common_size_of,
-                            estimate_face, estimate_faces_shape_prior, expected_work)
+                            estimate_face, estimate_faces_shape_prior, expected_work, with_size_std)
 from depth.workers import SharedMemory, fork_chain, fork_helper, fork_map, import_in_background
 from raytrace.scene import Cube
 
@@ -512,7 +512,7 @@ def _side_to_grow(failed) -> int | None:
 
 def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: float | None = None,
                 progress=None, compressed: bool = False, blur_domain: str = "auto",
-                workers: int | None = None) -> Reconstruction:
+                workers: int | None = None, cube_size_std: float | None = None) -> Reconstruction:
     """Find and estimate every cube in a mirror image.
 
     Parameters
@@ -525,6 +525,9 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         and each face fitted again at that size; its σ adds the common size's, carried through the fit)
     cube_size : float, optional — known edge length in metres (not with "exact_shape_prior", which
         estimates it)
+    cube_size_std : float, optional — that length's own σ in metres (with `cube_size` and "exact" only): each
+        cube's depth and centre σ add it times how far its fit moves per metre of the size
+        (`depth.estimate.with_size_std`), and its size σ is it. Default: the size taken as exact.
     progress : callable(done, total), optional: called as each detected blob is outlined, then as each
         face outlined is estimated; `total` is twice the blobs detected (a blob refused at its outline
         counts as estimated then); three times for "exact_shape_prior", whose fits at the common size
@@ -547,6 +550,12 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     if method == "exact_shape_prior" and cube_size is not None:
         raise DepthError("cube_size: exact_shape_prior estimates the cubes' common size; with a known size use "
                          "method exact")
+    if cube_size_std is not None:
+        if not (np.isfinite(cube_size_std) and cube_size_std >= 0):
+            raise DepthError(f"cube_size_std: expected a σ of the edge length in metres, >= 0, got {cube_size_std}")
+        if cube_size is None or method != "exact":
+            raise DepthError("cube_size_std: the σ of a known cube_size, carried through method exact's fit: give "
+                             f"cube_size and method exact{'' if cube_size is None else f', not {method}'}")
     if blur_domain not in ("auto",) + BLUR_DOMAINS:
         raise DepthError(f"blur_domain: expected one of auto, {', '.join(BLUR_DOMAINS)}, got {blur_domain!r}")
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1):
@@ -574,8 +583,12 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         scipy_imported = import_in_background(SOLVER_MODULES) if helper is None else None
         # checked here once: not again by each face's outline, silhouette, blur evidence and regrowth
         with checked_images(img, det_img):
-            return _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, compressed, blur_domain,
-                                workers, scipy_imported, helper, raw)
+            rec = _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, compressed, blur_domain,
+                               workers, scipy_imported, helper, raw)
+        if not cube_size_std:
+            return rec
+        carried = [with_size_std(c.estimate, cube_size_std) for c in rec.cubes]
+        return replace(rec, cubes=[replace(c, estimate=e, depth_std=e.std["z"]) for c, e in zip(rec.cubes, carried)])
     finally:
         if helper is not None:
             helper.close()

@@ -63,6 +63,26 @@ def test_result_follows_the_contract_and_is_accurate(scene, capsys):
     assert np.count_nonzero((r > 200) & (g > 200) & (b < 100)) > 50  # the yellow face outlines
 
 
+def test_a_known_size_s_sigma_widens_each_depth_sigma_by_the_fit_s_size_slope(scene):
+    """`--cube-size 0.04 --cube-size-std 0.0004` (1 %): each depth σ is the known-size reading's own, added in
+    quadrature to 0.0004 m times how far its depth moves per metre of size; the size σ is 0.0004 m; the readings
+    themselves are the same. A cube's scale fixes its distance along the reflected rays, which meet the camera's
+    pupil behind the mirror's surface: 1 % of the size moves the depth by more than 1 % of its distance from the
+    surface (depth − radius 0.1 m) and less than 1 % of its distance from the camera (depth + 0.55 m)."""
+    known, carried = scene / "known.json", scene / "known_sd.json"
+    assert main(["reconstruct", str(scene / "mirror.png"), "--cube-size", "0.04", "-o", str(known)]) == 0
+    assert main(["reconstruct", str(scene / "mirror.png"), "--cube-size", "0.04", "--cube-size-std", "0.0004",
+                 "-o", str(carried)]) == 0
+    a, b = (json.loads(p.read_text())["cubes"] for p in (known, carried))
+    assert len(a) == len(b) == 2
+    for x, y in zip(a, b):
+        assert y["center"] == x["center"] and y["depth"] == x["depth"] and y["size"] == x["size"] == 0.04
+        assert x["uncertainty"]["size"] == 0.0 and y["uncertainty"]["size"] == 0.0004
+        added = np.sqrt(y["uncertainty"]["depth"] ** 2 - x["uncertainty"]["depth"] ** 2)
+        assert 0.01 * (x["depth"] - 0.1) < added < 0.01 * (x["depth"] + 0.55), (x["depth"], added)
+        assert y["uncertainty"]["center"] > x["uncertainty"]["center"]
+
+
 @pytest.mark.parametrize("method", ["ddar", "shape_prior"])
 def test_other_methods_run(scene, method):
     out = scene / f"{method}.json"
@@ -179,6 +199,14 @@ def test_bad_inputs_exit_1_with_one_line_and_write_nothing(scene, capsys, tmp_pa
          "--cube-size: expected a positive edge length")
     _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--cube-size", "0.04", "--method",
                             "exact_shape_prior", "-o", out], "--cube-size: exact_shape_prior estimates the cubes'")
+    _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--cube-size-std", "0.0002", "-o", out],
+         "--cube-size-std: the σ of a known --cube-size, carried through the exact estimator's fit: give "
+         "--cube-size and --method exact")
+    _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--cube-size", "0.04", "--cube-size-std",
+                            "0.0002", "--method", "ddar", "-o", out], "give --cube-size and --method exact, not ddar")
+    for sd in ("-0.001", "nan"):
+        _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--cube-size", "0.04", "--cube-size-std",
+                                sd, "-o", out], "--cube-size-std: expected the σ of the edge length in metres, >= 0")
     _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--blur-domain", "gamma", "-o", out],
          "--blur-domain: expected one of auto, encoded, linear")
     _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--workers", "0", "-o", out],

@@ -500,3 +500,19 @@ def test_exact_shape_prior_refuses_a_lone_cube_and_a_given_size(rig):
     assert len(reconstruct(image, rig.camera, rig.mirror, method="exact").cubes) == 1
     with pytest.raises(DepthError, match="cube_size: exact_shape_prior estimates the cubes' common size"):
         reconstruct(image, rig.camera, rig.mirror, method="exact_shape_prior", cube_size=0.04)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(cube_size_std=0.0004), "cube_size_std: the σ of a known cube_size, carried through method exact's fit: "
+                                 "give cube_size and method exact$"),
+    (dict(cube_size=0.04, cube_size_std=0.0004, method="ddar"), "give cube_size and method exact, not ddar"),
+    (dict(cube_size=0.04, cube_size_std=-0.0004), "cube_size_std: expected a σ of the edge length in metres, >= 0, "
+                                                   "got -0.0004"),
+    (dict(cube_size=0.04, cube_size_std=float("inf")), "cube_size_std: expected a σ of the edge length"),
+])
+def test_a_known_size_s_sigma_is_refused_without_the_size_or_the_exact_estimator(rig, kwargs, match):
+    from depth.errors import DepthError
+    from depth.reconstruct import reconstruct
+    image = np.zeros((rig.camera.resolution[1], rig.camera.resolution[0], 3), np.uint8)
+    with pytest.raises(DepthError, match=match):
+        reconstruct(image, rig.camera, rig.mirror, **kwargs)
