@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import assume, example, given, settings, strategies as st
 
 from depth import ddar, priors
 from depth.errors import DegenerateGeometryError, DepthError
@@ -177,6 +177,9 @@ def test_common_size_sigma_is_calibrated_and_widens_where_a_cube_is_of_another_s
 
 @given(st.lists(st.tuples(st.floats(0.01, 0.1), st.floats(1e-4, 1e-2)), min_size=2, max_size=6), st.floats(1.0, 4.0))
 @settings(max_examples=80, deadline=None)
+@example([(0.056640625, 0.0021362174326758705), (0.03125, 0.0021362174326758705), (0.03125, 0.0021362174326758705),
+          (0.056640625, 0.0021362174326758705)], 1.0)  # a tie (CI, eighty-eighth session): skipped, not compared
+@example([(0.04, 0.0004), (0.04, 0.0004), (0.041, 0.0004), (0.048, 0.0004), (0.03, 0.0004)], 3.0)  # two set aside
 def test_common_size_sets_aside_the_sizes_the_others_disagree_with_one_at_a_time(cubes, reject):
     # a plain loop over the leave-one-out statistic, independent of the vectorised one
     s, sig = np.array(cubes).T
@@ -189,6 +192,10 @@ def test_common_size_sets_aside_the_sizes_the_others_disagree_with_one_at_a_time
             t.append(abs(s[j] - np.sum(w * s[rest]) / np.sum(w)) / np.sqrt(sig[j] ** 2 + 1.0 / np.sum(w)))
         if max(t) <= reject:
             break
+        # two sizes that disagree alike (placed symmetrically: 5.7, 3.1, 3.1, 5.7 cm at one σ) may go first either
+        # way, as their statistics round: no order to compare
+        top = sorted(t)[-2:]
+        assume(top[1] - top[0] > 1e-9 * top[1])
         used.pop(int(np.argmax(t)))
     fused = priors.common_size(s, sig, reject=reject)
     assert np.flatnonzero(fused.used).tolist() == used and fused.used.sum() >= 2
