@@ -1588,12 +1588,14 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             jac_d[:, k] = (derived(x + dx) - derived(x - dx)) / 2e-6
         return jac_d
 
-    def propagated(x, cov_x):
-        """The first-order σ of the centre, size and z of the reading at pose x with covariance cov_x."""
-        jac_d = derived_jac(x)
+    def propagated(x, cov_x, jac_d=None):
+        """The first-order σ of the centre, size and z of the reading at pose x with covariance cov_x (jac_d:
+        `derived_jac(x)`, where taken already)."""
+        jac_d = derived_jac(x) if jac_d is None else jac_d
         sd = np.sqrt(np.maximum(np.diag(jac_d @ cov_x @ jac_d.T), 0.0))
         return {"z": float(sd[4]), "size": float(sd[3]), "center": float(np.sqrt(np.sum(sd[:3] ** 2)))}
-    first_order = propagated(x_best, cov)
+    jac_best = derived_jac(x_best)
+    first_order = propagated(x_best, cov, jac_best)
 
     def size_slope():
         """At a known edge length, how this reading's centre and z move per metre of it: (3,) and a scalar. The
@@ -1611,7 +1613,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         dx = np.zeros(7)
         dx[free] = -np.linalg.lstsq(w[:, None] * jac[:, :-1], w * jac[:, -1], rcond=None)[0]
         dx[6] = 1.0  # per unit of log size: per metre, divided by the size
-        slope = derived_jac(x_best) @ dx / s
+        slope = jac_best @ dx / s
         return {"center": slope[:3], "z": float(slope[4])}
     slope = None if cube_size is None else size_slope()
 
@@ -1638,7 +1640,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             # The profile moves the pose against edge points held where they were read; a top or bottom
             # side read anywhere across an unresolved band (`unresolved_bands`) is an offset of those
             # points, so its part of the first-order σ adds to the profile's spread, not under it.
-            band = propagated(x_best, scales["band_cov"])
+            band = propagated(x_best, scales["band_cov"], jac_best)
             std = {key: float(np.hypot(max(np.sqrt(max(std[key] ** 2 - band[key] ** 2, 0.0)), profiled_std[key]),
                                        band[key])) for key in std}
         if upright_reading is not None:

@@ -1040,7 +1040,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
             return estimate_face(rays, attached(readings[i]), method="exact", cube_size=fused.size, up=up)
         fits = fork_map(fit, len(readings), workers, cost=[expected_work(meas, "exact") for _, meas, _ in readings],
                         progress=None if progress is None else lambda done, n: progress(
-                            (2 * n + done) * len(detections) // n, 3 * len(detections)))
+                            ((steps - 1) * n + done) * len(detections) // n, steps * len(detections)))
         out = []
         for reading, at, own in zip(readings, fits, alone):
             est = at_common_size(at, fused, own)
@@ -1089,7 +1089,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
     if one_size:
         results = common(results)
         if progress is not None and detections:  # (where no face was fitted at a common size)
-            progress(3 * len(detections), 3 * len(detections))
+            progress(steps * len(detections), steps * len(detections))
     for est, outline, reason, bbox, _ in results:
         if reason:
             refused.append(Refusal(bbox, reason))
