@@ -387,7 +387,10 @@ class CubeEstimate:
     cube's own size lay over 3 σ from the others' and was left out of their common size (`common_size`'s
     `reject`); it is read at that size all the same, its σ covering its own reading too. size_slope (``exact``
     at a known size only): how the centre ('center', (3,)) and z ('z') move per metre of that size, the pose
-    re-solved to first order; `exact_shape_prior` carries the common size's σ through it.
+    re-solved to first order; `exact_shape_prior` carries the common size's σ through it. first_order_cov
+    (``exact`` only): (5, 5) first-order covariance of the centre (x, y, z), the size and z, from the edges'
+    scatter alone (`std` widens it where the turn is unsure); `estimate_face_on_floor` reads how the centre's
+    height and z covary from it.
     """
 
     method: str
@@ -403,6 +406,7 @@ class CubeEstimate:
     side_misfits: tuple = ()
     size_set_aside: bool = False
     size_slope: dict | None = None
+    first_order_cov: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def __bool__(self) -> bool:
         return True
@@ -1691,7 +1695,8 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     def estimate(std):
         return CubeEstimate(method="exact", center=f0[:3], size=float(s), z=float(f0[4]), front_face_center=c,
                             normal=normal, aspect_ratio=start.aspect_ratio, std=std,
-                            xslit=start.xslit, rms_residual=rms, side_misfits=side_misfits, size_slope=slope)
+                            xslit=start.xslit, rms_residual=rms, side_misfits=side_misfits, size_slope=slope,
+                            first_order_cov=jac_best @ cov @ jac_best.T)
 
     @np.errstate(over="ignore", invalid="ignore", divide="ignore")  # as `_exact`'s, when called after it
     def completed():
@@ -1819,6 +1824,160 @@ def estimate_faces_exact_shape_prior(rays: RayFunction, measurements, up=None, s
                            e if aside else None)
             if e else FailedEstimate("exact_shape_prior", e.reason)
             for m, e, aside in zip(measurements, alone, set_aside)]
+
+
+FLOOR_MAX_FITS = 8
+"""Most fits at a known size `estimate_face_on_floor` makes to find the size that stands the cube on the floor."""
+
+FLOOR_LINEAR_STEP = 1e-3
+"""A size step (a share of the size) under which `estimate_face_on_floor` takes its last step along the fit's
+`size_slope` rather than fitting again: the pose it gives is off by the step's square (1e-6 of the size)."""
+
+FLOOR_MIN_RATE = 0.05
+"""How much the cube's bottom must rise or fall per metre of its size (m/m) for the floor to fix the size: the
+rate is (bottom − eye) / size, the eye the camera's viewpoint's height in the mirror, so under 0.05 the camera
+looks along the floor (a cube 4 cm across, under 2 mm)."""
+
+FLOOR_REFUTED_SIGMAS = 6.0
+"""A face whose own size (its edges', free) lies over this many σ from the size that stands it on the floor is
+refused by `estimate_face_on_floor`: the cube does not stand on that floor."""
+
+
+def floor_gap(est: CubeEstimate, floor_point, up) -> float:
+    """How far (m) the bottom of the upright cube `est` lies above the floor through `floor_point` square to `up`
+    (unit): its centre's height over the floor less half its size."""
+    return float(np.asarray(up) @ (est.center - np.asarray(floor_point))) - est.size / 2.0
+
+
+def floor_size_guess(rays: RayFunction, meas: FaceMeasurement, floor_point, up) -> float | None:
+    """The edge length of an upright cube standing on the floor (through `floor_point`, square to `up`, unit) from
+    its face's top and bottom sides alone: the bottom side's rays meet the floor at its bottom edge, and the top
+    side's rays pass that high over it (each ray's point nearest the vertical through the bottom edge's median
+    point; the median of their heights). None where the bottom side's rays do not meet the floor ahead, or the
+    top side's pass no higher than it. `estimate_face_on_floor` starts from it: a narrow face's own size may be
+    far off, and the fits on the way from there fail."""
+    up, floor_point = np.asarray(up, dtype=np.float64), np.asarray(floor_point, dtype=np.float64)
+    for bottom, top in ((3, 2), (2, 3)):  # the face's bottom side in the image first
+        p, d = rays(np.asarray(meas.sides_px[bottom], dtype=np.float64).reshape(-1, 2))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = ((floor_point - p) @ up) / (d @ up)
+        hit = np.isfinite(t) & (t > 0)
+        q, e = rays(np.asarray(meas.sides_px[top], dtype=np.float64).reshape(-1, 2))
+        ok = np.all(np.isfinite(q), axis=1) & np.all(np.isfinite(e), axis=1)
+        q, e = q[ok], e[ok] / np.linalg.norm(e[ok], axis=1, keepdims=True)
+        eu = e @ up
+        ok = 1.0 - eu ** 2 > 1e-9  # (a ray along the vertical meets it nowhere in particular)
+        if hit.sum() < 2 or ok.sum() < 2:
+            continue
+        base = np.median(p[hit] + t[hit, None] * d[hit], axis=0)
+        # the point q + a e of each ray nearest the vertical base + b up, and its height b over the floor
+        w, q, e, eu = q[ok] - base, q[ok], e[ok], eu[ok]
+        a = (eu * (w @ up) - np.einsum("ij,ij->i", w, e)) / (1.0 - eu ** 2)
+        size = float(np.median(w @ up + a * eu))
+        if size > 0 and np.all(a > 0):
+            return size
+    return None
+
+
+def estimate_face_on_floor(rays: RayFunction, meas: FaceMeasurement, floor_point, up, floor_std: float = 0.0,
+                           alone: CubeEstimate | None = None, seed: int = 0) -> CubeEstimate | FailedEstimate:
+    """`exact` for a cube standing on a known floor (the plane through `floor_point`, (3,), square to `up`, the
+    mirror's axis): its size is the one at which `exact`'s fit at that size puts the cube's bottom on the floor.
+
+    A face's edges fix its height above the camera's viewpoint per metre of its size well (its vertical place
+    and extent) but its scale poorly where the face is narrow; the floor fixes the scale. Newton's method on
+    the size: each step a fit at a known size (`estimate_face`'s `cube_size`), its bottom's height over the floor
+    (`floor_gap`) and how it moves with the size (`CubeEstimate.size_slope`); a step under `FLOOR_LINEAR_STEP` of
+    the size is the last, taken along that slope. It starts from the size the face's top and bottom sides give
+    alone (`floor_size_guess`), else (or where the fit at that size fails) from the face's own (`alone`, its free
+    `exact` reading, fitted here when not given); a fit that fails on the way takes half the step back. The cube
+    is taken upright (a cube on a floor is).
+
+    Its σ (first order): the fit's at that size (centre and z, `first_order_cov`) and the floor's height σ
+    `floor_std` (m), each carried through the size it moves (by the floor's rate, `FLOOR_MIN_RATE`), plus what
+    the turn profile widened the fit's σ by; its size σ is what they leave the size. A `FailedEstimate` where
+    the first fit fails, where the floor fixes no size, where the steps do not settle within `FLOOR_MAX_FITS`
+    fits, or where the face's own size lies over `FLOOR_REFUTED_SIGMAS` σ from the floor's (the cube does not
+    stand on it).
+    """
+    up = np.asarray(up, dtype=np.float64)
+    up = up / np.linalg.norm(up)
+    floor_point = np.asarray(floor_point, dtype=np.float64)
+    if not (np.isfinite(floor_std) and floor_std >= 0):
+        raise DepthError(f"floor_std: expected the σ of the floor's height in metres, >= 0, got {floor_std}")
+    if alone is None:
+        alone = estimate_face(rays, meas, "exact", seed=seed, up=up)
+    if not alone:
+        return alone
+    own = alone.std.get("size", np.inf)
+
+    def refuted(size, size_std=0.0):
+        """Where the face's own size refutes `size` (σ `size_std`) as the one standing it on the floor: why."""
+        if np.isfinite(own) and abs(alone.size - size) > FLOOR_REFUTED_SIGMAS * np.hypot(own, size_std):
+            return FailedEstimate("exact", f"its edges put its size at {alone.size * 1e3:.1f} ± {own * 1e3:.1f} mm, "
+                                           f"over {FLOOR_REFUTED_SIGMAS:g} σ from the {size * 1e3:.1f} mm that stands "
+                                           "it on the floor: it does not stand on that floor")
+        return None
+    guess = floor_size_guess(rays, meas, floor_point, up)
+    if guess is not None and (failed := refuted(guess)) is not None:
+        return failed
+    starts = [alone.size] if guess is None else [guess, alone.size]  # the second where a fit at the first fails
+    size = starts.pop(0)
+    last = None  # the size of the last fit that did not fail
+    for _ in range(FLOOR_MAX_FITS):
+        at = estimate_face(rays, meas, "exact", cube_size=size, seed=seed, up=up)
+        if not at:
+            if last is None and not starts:
+                return FailedEstimate("exact", f"at {size * 1e3:.2f} mm, the floor's first size: {at.reason}")
+            size = starts.pop(0) if last is None else (size + last) / 2.0  # the other start; half the step back
+            continue
+        last = size
+        rate = float(up @ at.size_slope["center"]) - 0.5  # d(floor_gap) / d(size)
+        if abs(rate) < FLOOR_MIN_RATE:
+            return FailedEstimate("exact", f"the floor fixes no size: the cube's bottom moves {rate:+.3f} m per metre "
+                                           f"of its size, under {FLOOR_MIN_RATE} (the camera looks along the floor)")
+        step = -floor_gap(at, floor_point, up) / rate
+        if size + step <= 0.0:  # (its bottom moves away from the floor as the cube grows: it lies beyond the eye)
+            return FailedEstimate("exact", f"no size stands it on the floor (its bottom would reach the floor at "
+                                           f"{(size + step) * 1e3:.1f} mm): it does not stand on that floor")
+        if abs(step) <= FLOOR_LINEAR_STEP * size:
+            moved = step * np.asarray(at.size_slope["center"])  # the face's centre lies half a size before the cube's
+            at = replace(at, center=at.center + moved, size=size + step, z=at.z + step * at.size_slope["z"],
+                         front_face_center=at.front_face_center + moved + step * at.normal / 2.0)
+            break
+        size = float(np.clip(size + step, size / 4.0, size * 4.0))
+    else:
+        return FailedEstimate("exact", f"no size stood the cube on the floor within {FLOOR_MAX_FITS} fits (the last "
+                                       f"{size * 1e3:.2f} mm): does it stand on that floor?")
+    est = _on_floor_std(at, up, rate, floor_std)
+    failed = refuted(est.size, est.std["size"])
+    return est if failed is None else failed
+
+
+def _on_floor_std(at: CubeEstimate, up: np.ndarray, rate: float, floor_std: float) -> CubeEstimate:
+    """`at` (`exact` at the size that stands it on the floor, whose bottom moves by `rate` per metre of size) with
+    its σ: the fit's centre and z noise and the floor's height σ, each moving the size by −(its share of the
+    bottom's height) / rate and the pose with it (`size_slope`), first order; plus the fit's σ beyond its first
+    order (the turn profile's widening)."""
+    cov = at.first_order_cov[np.ix_([0, 1, 2, 4], [0, 1, 2, 4])]  # centre (3) and z at that size
+    noise = np.zeros((5, 5))  # centre (3), z, the floor's height
+    noise[:4, :4] = cov
+    noise[4, 4] = floor_std ** 2
+    d_size = np.r_[-up, 0.0, 1.0] / rate  # the size's change per unit of each noise
+    slope_c, slope_z = np.asarray(at.size_slope["center"]), float(at.size_slope["z"])
+    out = np.zeros((5, 5))  # centre (3), size, z per unit of each noise
+    out[:3, :3] = np.eye(3)
+    out[4, 3] = 1.0
+    out[:3] += np.outer(slope_c, d_size)
+    out[3] = d_size
+    out[4] += slope_z * d_size
+    var = np.maximum(np.diag(out @ noise @ out.T), 0.0)
+    first = np.maximum(np.diag(at.first_order_cov), 0.0)
+    beyond_z = max(at.std["z"] ** 2 - first[4], 0.0)  # the turn profile's widening of the fit at that size
+    beyond_c = max(at.std["center"] ** 2 - first[:3].sum(), 0.0)
+    std = {"z": float(np.sqrt(var[4] + beyond_z)), "size": float(np.sqrt(var[3])),
+           "center": float(np.sqrt(var[:3].sum() + beyond_c))}
+    return replace(at, std={**at.std, **std})
 
 
 def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact",
