@@ -19,7 +19,8 @@ from depth.errors import DepthError
 from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED, METHODS,
                             NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, SOLVER_MODULES, CubeEstimate,
                             FaceMeasurement, _covering, _silhouette_disagreement, at_common_size, common_size_of,
-                            estimate_face, estimate_faces_shape_prior, expected_work, with_size_std)
+                            estimate_face, estimate_face_on_floor, estimate_faces_shape_prior, expected_work,
+                            with_size_std)
 from depth.workers import SharedMemory, fork_chain, fork_helper, fork_map, import_in_background
 from raytrace.scene import Cube
 
@@ -71,6 +72,27 @@ class CubeResult:
         }
 
 
+def _floor(mirror, method, cube_size, floor_height, floor_std):
+    """`reconstruct`'s floor: (a point of it, its height's σ), or None without `floor_height`; a `DepthError`
+    for a floor the arguments cannot have."""
+    if floor_height is None:
+        if floor_std is not None:
+            raise DepthError("floor_std: the σ of a floor's height: give floor_height too")
+        return None
+    if not np.isfinite(floor_height):
+        raise DepthError(f"floor_height: expected a height in metres along the mirror's axis, got {floor_height}")
+    if method != "exact":
+        raise DepthError(f"floor_height: cubes standing on a floor are fitted by method exact, not {method}")
+    if cube_size is not None:
+        raise DepthError("floor_height: the floor fixes each cube's size; give it or cube_size, not both")
+    if floor_std is not None and not (np.isfinite(floor_std) and floor_std >= 0):
+        raise DepthError(f"floor_std: expected the σ of the floor's height in metres, >= 0, got {floor_std}")
+    if not all(hasattr(mirror, key) for key in ("center", "axis")):
+        raise DepthError("floor_height: the floor is placed along the mirror's axis; this mirror has none")
+    return (np.asarray(mirror.center, dtype=np.float64) + float(floor_height) * np.asarray(mirror.axis),
+            float(floor_std or 0.0))
+
+
 @dataclass(frozen=True)
 class Refusal:
     """A cube seen but not estimated, with the reason."""
@@ -91,6 +113,7 @@ class Reconstruction:
     refused: list
     mirror_mask: np.ndarray = field(repr=False)
     blur_domain: str | None = None  # where the blur of blurred faces was taken to act; None: no face blurred
+    floor: tuple | None = None  # (height along the mirror's axis from its centre, its σ) the cubes stood on; None: none
 
 
 def _image_array(image, resolution) -> np.ndarray:
@@ -512,7 +535,8 @@ def _side_to_grow(failed) -> int | None:
 
 def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: float | None = None,
                 progress=None, compressed: bool = False, blur_domain: str = "auto",
-                workers: int | None = None, cube_size_std: float | None = None) -> Reconstruction:
+                workers: int | None = None, cube_size_std: float | None = None, floor_height: float | None = None,
+                floor_std: float | None = None) -> Reconstruction:
     """Find and estimate every cube in a mirror image.
 
     Parameters
@@ -542,6 +566,14 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         says what was used.
     workers : int >= 1, optional — processes the faces are outlined and estimated in (forked,
         `depth.workers.fork_map`); default: every available core. The results do not depend on it.
+    floor_height : float, optional — the cubes stand on a floor square to the mirror's axis, this far (m) along
+        it from the mirror's centre (−mirror.height / 2: the floor the mirror stands on, where `simulate`'s
+        ground lies); with method "exact" alone, and no `cube_size`: each face is read by `exact`, then fitted at
+        the size that stands its cube on the floor (`depth.estimate.estimate_face_on_floor`). A face's edges fix
+        its height over the camera per metre of size well and its scale poorly where it is narrow; the floor
+        fixes the scale. A cube whose edges refute that size is refused (it does not stand on the floor).
+    floor_std : float, optional — the σ (m) of `floor_height` (with it alone), carried into each depth's σ.
+        Default: the floor's height taken as exact.
     """
     from depth.measure import BLUR_DOMAINS, checked_images
 
@@ -558,6 +590,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
                              f"cube_size and method exact{'' if cube_size is None else f', not {method}'}")
     if blur_domain not in ("auto",) + BLUR_DOMAINS:
         raise DepthError(f"blur_domain: expected one of auto, {', '.join(BLUR_DOMAINS)}, got {blur_domain!r}")
+    floor = _floor(mirror, method, cube_size, floor_height, floor_std)
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1):
         raise DepthError(f"workers: expected an integer >= 1, got {workers!r}")
     raw = _image_array(image, camera.resolution)
@@ -577,14 +610,16 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         if helper is not None:
             out = memory.arrays([(raw.shape, np.float64)] * (2 if compressed else 1))
             helper.send((_helper_faces, (memory, raw.shape, camera, mirror, method, cube_size, progress is not None,
-                                         compressed, blur_domain, workers)))
+                                         compressed, blur_domain, workers, floor)))
         img = check_image(raw, camera.resolution, out=out[0])
         det_img = despeckled(raw if raw.dtype == np.uint8 else img, out=out[-1]) if compressed else img
         scipy_imported = import_in_background(SOLVER_MODULES) if helper is None else None
         # checked here once: not again by each face's outline, silhouette, blur evidence and regrowth
         with checked_images(img, det_img):
             rec = _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, compressed, blur_domain,
-                               workers, scipy_imported, helper, raw)
+                               workers, scipy_imported, helper, raw, floor)
+        if floor is not None:
+            rec = replace(rec, floor=(float(floor_height), floor[1]))
         if not cube_size_std:
             return rec
         carried = [with_size_std(c.estimate, cube_size_std) for c in rec.cubes]
@@ -602,7 +637,7 @@ def _helper_faces(job, relay, inbox) -> Reconstruction:
     coloured ones, then the grey ones (`_faces`' `more`)."""
     from depth.measure import checked_images
 
-    memory, shape, camera, mirror, method, cube_size, progress, compressed, blur_domain, workers = job
+    memory, shape, camera, mirror, method, cube_size, progress, compressed, blur_domain, workers, floor = job
     img, *rest = memory.arrays([(shape, np.float64)] * (2 if compressed else 1))
     memory.close()
     det_img = rest[0] if compressed else img
@@ -610,7 +645,8 @@ def _helper_faces(job, relay, inbox) -> Reconstruction:
     mask = np.unpackbits(mask_bits, count=mask_shape[0] * mask_shape[1]).reshape(mask_shape).view(bool)
     with checked_images(img, det_img):
         rec = _faces(img, det_img, camera, mirror, mask, _unpacked(packed, mask_shape), method, cube_size,
-                     relay if progress else None, compressed, blur_domain, workers, more=inbox if more else None)
+                     relay if progress else None, compressed, blur_domain, workers, more=inbox if more else None,
+                     floor=floor)
     return replace(rec, mirror_mask=None)  # (the parent has it)
 
 
@@ -699,7 +735,7 @@ def _unpacked(packed, shape) -> list:
 
 
 def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, compressed, blur_domain, workers,
-                 scipy_imported, helper, raw=None) -> Reconstruction:
+                 scipy_imported, helper, raw=None, floor=None) -> Reconstruction:
     """`reconstruct` of its checked image `img` (and `det_img`, the one cubes are detected on; `raw`, the image
     as it was given): the mirror region and the cubes detected in it here; their faces by the helper, where
     there is one, else here."""
@@ -733,13 +769,13 @@ def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, comp
     detections = detect_cubes(det_img, mask, compressed=compressed)
     scipy_imported()  # before any fork
     return _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, progress, compressed,
-                  blur_domain, workers)
+                  blur_domain, workers, floor=floor)
 
 
 def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, progress, compressed, blur_domain,
-           workers, more=None) -> Reconstruction:
+           workers, more=None, floor=None) -> Reconstruction:
     """`reconstruct`'s faces of the detections: each outlined and estimated (in worker processes), or
-    refused with the reason. With `more` (a `depth.workers.Inbox`), `detections` are the coloured ones alone,
+    refused with the reason. `floor`: (a point of the floor, its σ) where the cubes stand on it (`_floor`). With `more` (a `depth.workers.Inbox`), `detections` are the coloured ones alone,
     sent while the grey search goes on (`detect_cubes`' `coloured_found`), and the grey ones (`_packed`) come
     from `more`: the coloured faces are outlined and estimated meanwhile."""
     from raytrace.truth import mirror_rays
@@ -749,7 +785,8 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
 
     # exact_shape_prior: every face read as `exact` reads it, then fitted again at the common size (`common`)
     one_size, method = method == "exact_shape_prior", "exact" if method == "exact_shape_prior" else method
-    steps = 3 if one_size else 2  # (the progress's total: `steps` per detection)
+    refitted = one_size or floor is not None  # each face read is fitted again: at the common size, or on the floor
+    steps = 3 if refitted else 2  # (the progress's total: `steps` per detection)
 
     def rays(px):
         r = mirror_rays(camera, mirror, px)
@@ -1021,26 +1058,30 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                 if verdict(k, other_est, other_meas) is None:
                     est, meas, outline, reason, bbox = other_est, other_meas, other, None, grown.bbox
                     break
-        if not one_size or reason:
+        if not refitted or reason:
             return est, outline, reason, bbox, None
         own = meas.blob_mask is sources[k][0].mask
         return est, outline, reason, bbox, (k, _bare(meas), None if own else np.packbits(meas.blob_mask))
+
+    def attached(reading):
+        """The measurement of a reading of `settled`, with its blob mask."""
+        k, meas, packed = reading
+        blob = sources[k][0].mask if packed is None else np.unpackbits(
+            packed, count=mask.size).reshape(mask.shape).view(bool)
+        return _attached(meas, blob, img)
+
+    def refits(fit, readings):
+        """`fit(i)` of each of the faces `readings` (`settled`'s), in worker processes, the last step of the progress."""
+        return fork_map(fit, len(readings), workers, cost=[expected_work(meas, "exact") for _, meas, _ in readings],
+                        progress=None if progress is None else lambda done, n: progress(
+                            ((steps - 1) * n + done) * len(detections) // n, steps * len(detections)))
 
     def refit(readings, fused, alone):
         """The faces `readings` (`settled`'s) fitted by `exact` at the common size `fused` (in worker processes): per
         face, its estimate (`at_common_size`; `alone`: per face, its own `exact` reading where its size was set
         aside, else None), or the reason it is refused."""
-        def attached(reading):
-            k, meas, packed = reading
-            blob = sources[k][0].mask if packed is None else np.unpackbits(
-                packed, count=mask.size).reshape(mask.shape).view(bool)
-            return _attached(meas, blob, img)
-
-        def fit(i):
-            return estimate_face(rays, attached(readings[i]), method="exact", cube_size=fused.size, up=up)
-        fits = fork_map(fit, len(readings), workers, cost=[expected_work(meas, "exact") for _, meas, _ in readings],
-                        progress=None if progress is None else lambda done, n: progress(
-                            ((steps - 1) * n + done) * len(detections) // n, steps * len(detections)))
+        fits = refits(lambda i: estimate_face(rays, attached(readings[i]), method="exact", cube_size=fused.size, up=up),
+                      readings)
         out = []
         for reading, at, own in zip(readings, fits, alone):
             est = at_common_size(at, fused, own)
@@ -1067,6 +1108,24 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
             out[i] = (est, outline, again, bbox, None) if isinstance(again, str) else (again, outline, None, bbox, None)
         return out
 
+    def on_floor(results):
+        """`_one_per_face`'s results with each cube read fitted again at the size that stands it on the floor
+        (`estimate_face_on_floor`, from its reading here), checked again at that size."""
+        kept = [i for i, r in enumerate(results) if not r[2]]
+        point, std = floor
+        fits = refits(lambda j: estimate_face_on_floor(rays, attached(results[kept[j]][4]), point, up, std,
+                                                       alone=results[kept[j]][0]),
+                      [results[i][4] for i in kept])
+        out = list(results)
+        for i, est in zip(kept, fits):
+            reading = results[i][4]
+            reason = verdict(reading[0], est, attached(reading), est.size if est else None)
+            if reason and est:
+                reason = f"on the floor, at {est.size * 1e3:.2f} mm: {reason}"
+            _, outline, _, bbox, _ = results[i]
+            out[i] = (est, outline, reason, bbox, None)
+        return out
+
     # the estimates' progress, after the outlines' (the blobs refused at theirs counted as estimated)
     before = len(detections) + len(refused)
     estimated = None if progress is None else lambda done, _: progress(before + done, steps * len(detections))
@@ -1088,6 +1147,9 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
     results = _one_per_face(results)
     if one_size:
         results = common(results)
+    elif floor is not None:
+        results = on_floor(results)
+    if refitted:
         if progress is not None and detections:  # (where no face was fitted at a common size)
             progress(steps * len(detections), steps * len(detections))
     for est, outline, reason, bbox, _ in results:

@@ -516,3 +516,21 @@ def test_a_known_size_s_sigma_is_refused_without_the_size_or_the_exact_estimator
     image = np.zeros((rig.camera.resolution[1], rig.camera.resolution[0], 3), np.uint8)
     with pytest.raises(DepthError, match=match):
         reconstruct(image, rig.camera, rig.mirror, **kwargs)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(floor_std=0.001), "floor_std: the σ of a floor's height: give floor_height too"),
+    (dict(floor_height=float("nan")), "floor_height: expected a height in metres along the mirror's axis, got nan"),
+    (dict(floor_height=-0.245, method="ddar"), "floor_height: cubes standing on a floor are fitted by method exact, "
+                                               "not ddar"),
+    (dict(floor_height=-0.245, method="exact_shape_prior"), "fitted by method exact, not exact_shape_prior"),
+    (dict(floor_height=-0.245, cube_size=0.04), "floor_height: the floor fixes each cube's size; give it or "
+                                                "cube_size, not both"),
+    (dict(floor_height=-0.245, floor_std=-0.001), "floor_std: expected the σ of the floor's height in metres, >= 0"),
+])
+def test_a_floor_the_arguments_cannot_have_is_refused(rig, kwargs, match):
+    from depth.errors import DepthError
+    from depth.reconstruct import reconstruct
+    image = np.zeros((rig.camera.resolution[1], rig.camera.resolution[0], 3), np.uint8)
+    with pytest.raises(DepthError, match=match):
+        reconstruct(image, rig.camera, rig.mirror, **kwargs)
