@@ -203,7 +203,9 @@ def _cmd_reconstruct(args) -> int:
         setup, setup_path, image, rec = rc.run_reconstruction(args.image, args.setup, args.method,
                                                               args.cube_size, progress=bar,
                                                               blur_domain=args.blur_domain, workers=workers,
-                                                              cube_size_std=args.cube_size_std)
+                                                              cube_size_std=args.cube_size_std,
+                                                              on_floor=args.on_floor, floor_height=args.floor_height,
+                                                              floor_std=args.floor_std)
     result = rc.result_dict(args.image, setup_path, rec)
     truth = _truth_beside(args.image)
     overlay = rc.draw_overlay(image, rec) if args.overlay else None
@@ -301,6 +303,14 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--cube-size", type=float, metavar="S")
     r.add_argument("--cube-size-std", type=float, metavar="SD",
                    help="the σ of --cube-size (m), carried through the exact estimator's fit into each depth's σ")
+    r.add_argument("--on-floor", action="store_true",
+                   help="the cubes stand on the floor the mirror stands on (its lower end): the floor fixes each "
+                        "cube's size (method exact)")
+    r.add_argument("--floor-height", type=float, metavar="H",
+                   help="the cubes stand on a floor square to the mirror's axis, H m along it from the mirror's "
+                        "centre (instead of --on-floor's)")
+    r.add_argument("--floor-std", type=float, metavar="SD",
+                   help="the σ of the floor's height (m), carried into each depth's σ")
     r.add_argument("--method", default=None,
                    help="exact (default), ddar, dds, shape_prior (the paper's, for cubes of one size) or "
                         "exact_shape_prior (cubes of one size: each fitted by exact at their common size)")

@@ -52,18 +52,41 @@ def default_setup_path(image_path) -> Path:
 
 
 def run_reconstruction(image_path, setup_path=None, method=None, cube_size=None, progress=None, blur_domain=None,
-                       workers=None, cube_size_std=None):
+                       workers=None, cube_size_std=None, on_floor=False, floor_height=None, floor_std=None):
     """Validate the inputs and reconstruct (the faces on `workers` processes, default every core); returns
-    (setup, setup_path, image, Reconstruction)."""
+    (setup, setup_path, image, Reconstruction). `on_floor`: the cubes stand on the floor the mirror stands on
+    (its lower end); `floor_height`: on a floor this far (m) along the mirror's axis from its centre instead;
+    `floor_std`: that floor's height σ (m)."""
     from depth.reconstruct import helper_started
     # `reconstruct`'s helper process forked first, before any thread starts here: it imports the estimators'
     # modules (0.5–0.6 s) while the inputs are read and the cubes detected; ended where the inputs are refused
     with helper_started():
         return _run_reconstruction(image_path, setup_path, method, cube_size, progress, blur_domain, workers,
-                                   cube_size_std)
+                                   cube_size_std, on_floor, floor_height, floor_std)
 
 
-def _run_reconstruction(image_path, setup_path, method, cube_size, progress, blur_domain, workers, cube_size_std):
+def _check_floor(method, cube_size, on_floor, floor_height, floor_std):
+    """The one-line error for floor arguments the command cannot take, if any."""
+    if on_floor and floor_height is not None:
+        raise CatadioptricError("--on-floor, --floor-height: give one (--on-floor: the floor the mirror stands on)")
+    if floor_height is not None and not np.isfinite(floor_height):
+        raise CatadioptricError(f"--floor-height: expected a height in metres along the mirror's axis from its "
+                                f"centre, got {floor_height}")
+    flag = "--on-floor" if on_floor else "--floor-height"
+    if floor_std is not None:
+        if not (np.isfinite(floor_std) and floor_std >= 0):
+            raise CatadioptricError(f"--floor-std: expected the σ of the floor's height in metres, >= 0, got {floor_std}")
+        if not on_floor and floor_height is None:
+            raise CatadioptricError("--floor-std: the σ of the floor's height: give --on-floor or --floor-height")
+    if on_floor or floor_height is not None:
+        if method != "exact":
+            raise CatadioptricError(f"{flag}: cubes standing on a floor are fitted by --method exact, not {method}")
+        if cube_size is not None:
+            raise CatadioptricError(f"{flag}: the floor fixes each cube's size; give it or --cube-size, not both")
+
+
+def _run_reconstruction(image_path, setup_path, method, cube_size, progress, blur_domain, workers, cube_size_std,
+                        on_floor=False, floor_height=None, floor_std=None):
     from concurrent.futures import ThreadPoolExecutor
     with ThreadPoolExecutor(1) as reader:
         # the image decoded (by OpenCV, which lets go of the GIL: 40 ms for a 2048×1536 PNG) while the
@@ -89,6 +112,7 @@ def _run_reconstruction(image_path, setup_path, method, cube_size, progress, blu
         raise CatadioptricError("--cube-size-std: the σ of a known --cube-size, carried through the exact "
                                 "estimator's fit: give --cube-size and --method exact"
                                 + ("" if cube_size is None else f", not {method}"))
+    _check_floor(method, cube_size, on_floor, floor_height, floor_std)
     setup_path = Path(setup_path) if setup_path else default_setup_path(image_path)
     image = reading.result()
     setup = load_setup(setup_path)
@@ -97,22 +121,28 @@ def _run_reconstruction(image_path, setup_path, method, cube_size, progress, blu
         raise CatadioptricError(f"{image_path}: expected {w}×{h} pixels ({setup_path}: camera.resolution), "
                                 f"got {image.shape[1]}×{image.shape[0]}")
     from depth.errors import DepthError
+    if on_floor:
+        floor_height = -setup.mirror.height / 2.0
     try:
         rec = reconstruct(image, setup.camera.build(), setup.mirror.build(), method=method,
                           cube_size=cube_size, progress=progress, compressed=is_jpeg(image_path),
-                          blur_domain=blur_domain, workers=workers, cube_size_std=cube_size_std)
+                          blur_domain=blur_domain, workers=workers, cube_size_std=cube_size_std,
+                          floor_height=floor_height, floor_std=floor_std)
     except DepthError as exc:
         raise CatadioptricError(f"{image_path}: {exc}") from None
     return setup, setup_path, image, rec
 
 
 def result_dict(image_path, setup_path, rec) -> dict:
-    """The reconstruct result of SETUP_FORMAT.md (plus `refused`, the method used and, when faces were
-    blurred, `blur_domain`)."""
+    """The reconstruct result of SETUP_FORMAT.md (plus `refused`, the method used, when faces were blurred
+    `blur_domain`, and when the cubes were taken to stand on a floor `floor`: its height along the mirror's axis
+    from the mirror's centre and that height's σ, metres)."""
     out = {"image": Path(image_path).name, "setup": Path(setup_path).name, "method": rec.method,
            "cubes": [c.to_dict() for c in rec.cubes], "refused": [r.to_dict() for r in rec.refused]}
     if rec.blur_domain is not None:  # blurred faces: where their blur was taken to act
         out["blur_domain"] = rec.blur_domain
+    if getattr(rec, "floor", None) is not None:  # the floor the cubes were taken to stand on
+        out["floor"] = {"height": rec.floor[0], "std": rec.floor[1]}
     return out
 
 
@@ -156,7 +186,10 @@ def print_table(console, result: dict, truth: dict | None = None) -> None:
     from rich.table import Table
 
     from depth.estimate import EDGE_MISFIT_WARN_PX, edge_misfit_flagged
-    t = Table(title=f"{result['image']}: {len(result['cubes'])} cube(s), method {result['method']}")
+    floor = result.get("floor")
+    t = Table(title=f"{result['image']}: {len(result['cubes'])} cube(s), method {result['method']}"
+                    + ("" if floor is None else f", standing on a floor {floor['height']:+.4f} m along the mirror's axis"
+                                                + (f" (±{floor['std']:.4f})" if floor["std"] else "")))
     cols = ["#", "depth (m)", "±σ (m)", "size (m)", "centre (m)", "AR r_i", "misfit"]
     if truth:
         cols += ["true depth", "centre err", "size err"]

@@ -83,6 +83,71 @@ def test_a_known_size_s_sigma_widens_each_depth_sigma_by_the_fit_s_size_slope(sc
         assert y["uncertainty"]["center"] > x["uncertainty"]["center"]
 
 
+@pytest.fixture(scope="module")
+def floor_scene(tmp_path_factory):
+    """An 800×600 render (looking down at the mirror's lower half) of three cubes standing on the floor the mirror
+    stands on (its lower end, y = -0.245 m; the checkered ground there), with its truth: 3 and 4 cm, 0.45–0.8 m
+    from the axis, one turned 15°."""
+    import tomli_w
+    folder = tmp_path_factory.mktemp("floor")
+    setup = {
+        "camera": {"resolution": [800, 600], "focal_px": [1000.0, 1000.0], "position": [0.0, 0.0, 0.55],
+                   "look_at": [0.0, -0.1, 0.0], "up": [0.0, 1.0, 0.0]},
+        "mirror": {"type": "cylinder", "radius": 0.1, "height": 0.49, "center": [0.0, 0.0, 0.0],
+                   "axis": [0.0, 1.0, 0.0]},
+        "scene": {"ground": True},
+        "objects": [],
+    }
+    for r, az, size, turn, color in ((0.45, -25.0, 0.04, 0.0, [0.85, 0.1, 0.1]), (0.6, 15.0, 0.03, 15.0, [0.1, 0.2, 0.85]),
+                                     (0.8, -5.0, 0.04, 0.0, [0.1, 0.7, 0.15])):
+        a = np.deg2rad(az)
+        x, z = r * np.sin(a), r * np.cos(a)
+        setup["objects"].append({"type": "cube", "size": size, "center": [x, -0.245 + size / 2, z],
+                                 "rotation_deg": [0.0, float(np.rad2deg(np.arctan2(-x, -z))) + turn, 0.0],
+                                 "color": color})
+    path = folder / "in.toml"
+    path.write_text(tomli_w.dumps(setup))
+    assert main(["simulate", str(path), "-o", str(folder / "floor.png")]) == 0
+    return folder
+
+
+def test_cubes_on_the_floor_are_read_to_their_depth_with_the_floor_s_sigma(floor_scene, capsys):
+    """`--on-floor`: every centre within 0.5 % (the floor fixes each scale), every size within 1 % (its top side
+    read to a nominal 0.15 px on faces 28–60 px tall, the rest of its height on the floor); `--floor-height
+    -0.245` is the same floor (the same result to the bit); `--floor-std 0.002` leaves the readings as they are and
+    widens each depth σ, within 2 σ of the truth; the result says which floor, and so does the table."""
+    capsys.readouterr()
+    img = str(floor_scene / "floor.png")
+    paths = {k: floor_scene / f"{k}.json" for k in ("flag", "height", "std")}
+    assert main(["reconstruct", img, "--on-floor", "-o", str(paths["flag"])]) == 0
+    assert "standing on a floor -0.2450 m along the mirror's axis" in capsys.readouterr().out
+    assert main(["reconstruct", img, "--floor-height", "-0.245", "-o", str(paths["height"])]) == 0
+    assert main(["reconstruct", img, "--on-floor", "--floor-std", "0.002", "-o", str(paths["std"])]) == 0
+    flag, height, std = (json.loads(p.read_text()) for p in paths.values())
+    truth = json.loads((floor_scene / "floor.truth.json").read_text())
+    assert flag["floor"] == height["floor"] == {"height": -0.245, "std": 0.0} and std["floor"]["std"] == 0.002
+    assert flag["cubes"] == height["cubes"] and len(flag["cubes"]) == 3
+    for cube, wide in zip(flag["cubes"], std["cubes"]):
+        t = min(truth["cubes"], key=lambda t: np.linalg.norm(np.subtract(t["center"], cube["center"])))
+        assert np.linalg.norm(np.subtract(cube["center"], t["center"])) / t["depth"] < 0.005
+        assert cube["size"] == pytest.approx(t["size"], rel=0.01) and cube["method"] == "exact"
+        assert wide["center"] == cube["center"] and wide["uncertainty"]["depth"] > cube["uncertainty"]["depth"]
+        assert abs(wide["depth"] - t["depth"]) < 2.0 * wide["uncertainty"]["depth"]
+
+
+def test_cubes_off_the_floor_are_refused_not_read_at_the_floor_s_size(scene, capsys):
+    """The two cubes of `scene` float at the camera's height, 0.245 m over the floor the mirror stands on: the size
+    that would stand each on it (about 0.49 m) lies far beyond their edges' own 4 cm and its σ, so `--on-floor`
+    refuses both, saying so, and writes a result with no cube."""
+    capsys.readouterr()
+    out = scene / "off_floor.json"
+    assert main(["reconstruct", str(scene / "mirror.png"), "--on-floor", "-o", str(out)]) == 0
+    result = json.loads(out.read_text())
+    assert result["cubes"] == [] and len(result["refused"]) == 2
+    assert all("it does not stand on that floor" in r["reason"] for r in result["refused"]), result["refused"]
+    assert "no cube could be estimated" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("method", ["ddar", "shape_prior"])
 def test_other_methods_run(scene, method):
     out = scene / f"{method}.json"
@@ -207,6 +272,14 @@ def test_bad_inputs_exit_1_with_one_line_and_write_nothing(scene, capsys, tmp_pa
     for sd in ("-0.001", "nan"):
         _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--cube-size", "0.04", "--cube-size-std",
                                 sd, "-o", out], "--cube-size-std: expected the σ of the edge length in metres, >= 0")
+    for argv, message in (
+            (["--on-floor", "--floor-height", "-0.2"], "--on-floor, --floor-height: give one"),
+            (["--floor-height", "nan"], "--floor-height: expected a height in metres along the mirror's axis"),
+            (["--floor-std", "0.001"], "--floor-std: the σ of the floor's height: give --on-floor or --floor-height"),
+            (["--on-floor", "--floor-std", "-0.001"], "--floor-std: expected the σ of the floor's height in metres"),
+            (["--on-floor", "--method", "ddar"], "--on-floor: cubes standing on a floor are fitted by --method exact"),
+            (["--floor-height", "-0.2", "--cube-size", "0.04"], "--floor-height: the floor fixes each cube's size")):
+        _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), *argv, "-o", out], message)
     _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--blur-domain", "gamma", "-o", out],
          "--blur-domain: expected one of auto, encoded, linear")
     _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--workers", "0", "-o", out],
