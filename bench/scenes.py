@@ -114,7 +114,8 @@ def _overlaps(a, b) -> bool:
     return not (a[2] + m < b[0] or b[2] + m < a[0] or a[3] + m < b[1] or b[3] + m < a[1])
 
 
-def _draw_scene(rng, index: int, kind: str, resolution, same_size: bool = False) -> BenchScene | None:
+def _draw_scene(rng, index: int, kind: str, resolution, same_size: bool = False,
+                standing: bool = False) -> BenchScene | None:
     from raytrace.scene import Cube
     w, h = resolution
     R = float(rng.uniform(0.075, 0.15))
@@ -137,6 +138,8 @@ def _draw_scene(rng, index: int, kind: str, resolution, same_size: bool = False)
             dist = float(rng.uniform(2.0, 10.0) * R)
             az = math.radians(rng.uniform(-60.0, 60.0))
             y = float(rng.uniform(-0.25, 0.25) * height)
+            if standing:  # on the floor the mirror stands on (the same draws made, the height replaced)
+                y = -height / 2 + size / 2
             centre = (round(dist * math.sin(az), 5), round(y, 5), round(dist * math.cos(az), 5))
             facing = math.degrees(math.atan2(-centre[0], -centre[2]))  # local +z toward the axis
             turn = 0.0 if kind == "axis" else float(rng.choice([-1.0, 1.0]) * rng.uniform(5.0, 25.0))
@@ -155,7 +158,7 @@ def _draw_scene(rng, index: int, kind: str, resolution, same_size: bool = False)
             break
         else:
             return None
-    ground = bool(rng.uniform() < 0.4)
+    ground = bool(rng.uniform() < 0.4) or standing
     to_light = np.array([rng.uniform(-0.5, 0.5), 1.0, -rng.uniform(0.2, 1.0)])
     if rng.uniform() < 0.3:  # the library default: light from the camera's side
         light = SceneConfig.light_direction
@@ -167,10 +170,11 @@ def _draw_scene(rng, index: int, kind: str, resolution, same_size: bool = False)
     return BenchScene(name=f"s{index:02d}", kind=kind, setup=setup, turn_deg=tuple(turns), same_size=same_size)
 
 
-def make_scenes(n: int = 24, seed: int = 5) -> list[BenchScene]:
+def make_scenes(n: int = 24, seed: int = 5, standing: bool = False) -> list[BenchScene]:
     """`n` seeded scenes alternating "axis" / "turned"; each kind cycles through RESOLUTIONS (every fourth scene is 2048×1536).
 
-    Every third scene (index 2, 5, 8, ...) has cubes of one common size, for `shape_prior`.
+    Every third scene (index 2, 5, 8, ...) has cubes of one common size, for `shape_prior`. With `standing`, every
+    cube stands on the floor the mirror stands on (its lower end; the scene has the ground plane there).
 
     A draw whose cubes cannot all be
     placed is discarded and redrawn (with the same generator, so the list is reproducible).
@@ -182,7 +186,7 @@ def make_scenes(n: int = 24, seed: int = 5) -> list[BenchScene]:
         kind = "axis" if len(out) % 2 == 0 else "turned"
         j = len(out)
         res = RESOLUTIONS[(j // 2 + 2 * (j % 2)) % len(RESOLUTIONS)]
-        s = _draw_scene(rng, len(out), kind, res, same_size=j % 3 == 2)
+        s = _draw_scene(rng, len(out), kind, res, same_size=j % 3 == 2, standing=standing)
         i += 1
         if s is not None:
             out.append(s)
