@@ -88,33 +88,47 @@ def summarize(records: list, reading: str) -> dict:
 
 
 def report(result: dict, log=print) -> dict:
+    return reading_table(result["records"], READINGS, summarize, log)
+
+
+def reading_table(records: list, readings, summary, log=print, extra: tuple = ()) -> dict:
+    """Log a line per reading of `records` (its `summary(records, reading)`: recall, false positives, centre
+    error median / max / over 3 %, depth within 1 / 2 / 3 σ, then each of `extra`'s (header, cell of a summary)
+    columns); returns {reading: its summary}."""
     out = {}
     log(f"{'reading':20s} {'found':>9s} {'FP':>3s} | {'centre med':>10s} {'max':>8s} {'> 3 %':>5s} | "
-        f"depth within 1 / 2 / 3 σ")
-    for reading in READINGS:
-        s = out[reading] = summarize(result["records"], reading)
+        + " | ".join(["depth within 1 / 2 / 3 σ", *(header for header, _ in extra)]))
+    for reading in readings:
+        s = out[reading] = summary(records, reading)
         if s["centre_median"] is None:
             log(f"{reading:20s} {s['found']:>4d}/{s['cubes']:<4d} {s['false_positives']:>3d} | none found")
             continue
         within = " / ".join(f"{100 * v:.0f}" for v in s["depth_within_1_2_3_sigma"])
         log(f"{reading:20s} {s['found']:>4d}/{s['cubes']:<4d} {s['false_positives']:>3d} | "
-            f"{100 * s['centre_median']:>9.2f}% {100 * s['centre_max']:>7.2f}% {s['over_3pct']:>5d} | {within} %")
+            f"{100 * s['centre_median']:>9.2f}% {100 * s['centre_max']:>7.2f}% {s['over_3pct']:>5d} | "
+            + " | ".join([f"{within} %", *(cell(s) for _, cell in extra)]))
     return out
 
 
-def main(argv=None) -> int:
+def written_main(name: str, banner: str, run, report, argv=None) -> int:
+    """A readings bench's `main` (this one's, `bench_on_floor`'s): print `banner`, `run(quick)`, `report` its result
+    (its summary kept in it) and write it to bench/out/NAME.json (NAME-quick.json with --quick)."""
     from bench.bench_reconstruct import OUT
     argv = sys.argv[1:] if argv is None else argv
     quick = "--quick" in argv
-    print(f"known cube size: the reconstruct bench's scenes of one size{' (quick)' if quick else ''}; readings "
-          f"{', '.join(READINGS)}", flush=True)
+    print(banner.format(quick=" (quick)" if quick else ""), flush=True)
     result = run(quick)
     result["summary"] = report(result)
     OUT.mkdir(parents=True, exist_ok=True)
-    path = OUT / ("known_size-quick.json" if quick else "known_size.json")
+    path = OUT / (f"{name}-quick.json" if quick else f"{name}.json")
     path.write_text(json.dumps(result, indent=1))
     print(f"wrote {path}; total {result['seconds_total']:.0f} s")
     return 0
+
+
+def main(argv=None) -> int:
+    return written_main("known_size", "known cube size: the reconstruct bench's scenes of one size{quick}; readings "
+                        + ", ".join(READINGS), run, report, argv)
 
 
 if __name__ == "__main__":

@@ -24,7 +24,6 @@ bench/out/on_floor.json.
 from __future__ import annotations
 
 import contextlib
-import json
 import sys
 import time
 
@@ -110,21 +109,12 @@ def run(quick: bool = False, log=print) -> dict:
 
 
 def summarize(records: list, reading: str) -> dict:
-    """Recall, false positives, centre error (median, max, over 3 %), size error median, depth within 1 / 2 / 3 σ
-    and the median time per image of `reading`."""
-    rows = [c for r in records if r["reading"] == reading for c in r["cubes"]]
-    found = [c for c in rows if c["found"]]
-    err = np.array([c["centre_err"] for c in found])
-    size = np.array([abs(c["size_err"]) for c in found])
-    z = np.array([abs(c["depth_z"]) for c in found if c.get("depth_z") is not None])
+    """`bench_known_size.summarize` of `reading` (recall, false positives, centre error, depth within 1 / 2 / 3 σ),
+    with the size error's median and the median time per image."""
+    from bench.bench_known_size import summarize as known_size_summary
+    size = [abs(c["size_err"]) for r in records if r["reading"] == reading for c in r["cubes"] if c["found"]]
     seconds = [r["seconds"] for r in records if r["reading"] == reading and r["seconds"] is not None]
-    return {"found": len(found), "cubes": len(rows),
-            "false_positives": sum(r["false_positives"] for r in records if r["reading"] == reading),
-            "centre_median": float(np.median(err)) if len(err) else None,
-            "centre_max": float(err.max()) if len(err) else None,
-            "over_3pct": int(np.sum(err > 0.03)),
-            "size_median": float(np.median(size)) if len(size) else None,
-            "depth_within_1_2_3_sigma": [float(np.mean(z <= k)) for k in (1, 2, 3)] if len(z) else None,
+    return {**known_size_summary(records, reading), "size_median": float(np.median(size)) if size else None,
             "seconds_median": float(np.median(seconds)) if seconds else None}
 
 
@@ -144,19 +134,10 @@ def time_ratios(records: list) -> dict:
 
 
 def report(result: dict, log=print) -> dict:
-    out = {}
-    log(f"{'reading':20s} {'found':>9s} {'FP':>3s} | {'centre med':>10s} {'max':>8s} {'> 3 %':>5s} | "
-        f"{'size med':>8s} | depth within 1 / 2 / 3 σ | s / image")
-    for reading in READINGS:
-        s = out[reading] = summarize(result["records"], reading)
-        if s["centre_median"] is None:
-            log(f"{reading:20s} {s['found']:>4d}/{s['cubes']:<4d} {s['false_positives']:>3d} | none found")
-            continue
-        within = " / ".join(f"{100 * v:.0f}" for v in s["depth_within_1_2_3_sigma"])
-        secs = "—" if s["seconds_median"] is None else f"{s['seconds_median']:.2f}"
-        log(f"{reading:20s} {s['found']:>4d}/{s['cubes']:<4d} {s['false_positives']:>3d} | "
-            f"{100 * s['centre_median']:>9.2f}% {100 * s['centre_max']:>7.2f}% {s['over_3pct']:>5d} | "
-            f"{100 * s['size_median']:>7.2f}% | {within} % | {secs}")
+    from bench.bench_known_size import reading_table
+    out = reading_table(result["records"], READINGS, summarize, log, extra=(
+        ("size med", lambda s: f"{100 * s['size_median']:.2f} %"),
+        ("s / image", lambda s: "—" if s["seconds_median"] is None else f"{s['seconds_median']:.2f}")))
     ratios = out["time_ratio"] = time_ratios(result["records"])
     for reading, r in ratios.items():
         if r is not None:
@@ -166,18 +147,9 @@ def report(result: dict, log=print) -> dict:
 
 
 def main(argv=None) -> int:
-    from bench.bench_reconstruct import OUT
-    argv = sys.argv[1:] if argv is None else argv
-    quick = "--quick" in argv
-    print(f"cubes on the floor: {QUICK_SCENES if quick else N_SCENES} scenes of ours x 4 variants + "
-          f"{QUICK_MITSUBA if quick else N_MITSUBA} Mitsuba scenes; readings {', '.join(READINGS)}", flush=True)
-    result = run(quick)
-    result["summary"] = report(result)
-    OUT.mkdir(parents=True, exist_ok=True)
-    path = OUT / ("on_floor-quick.json" if quick else "on_floor.json")
-    path.write_text(json.dumps(result, indent=1))
-    print(f"wrote {path}; total {result['seconds_total']:.0f} s")
-    return 0
+    from bench.bench_known_size import written_main
+    return written_main("on_floor", f"cubes on the floor: {N_SCENES} scenes of ours x 4 variants + {N_MITSUBA} Mitsuba "
+                        f"scenes{{quick}}; readings {', '.join(READINGS)}", run, report, argv)
 
 
 if __name__ == "__main__":
