@@ -1935,7 +1935,8 @@ def estimate_face_on_floor(rays: RayFunction, meas: FaceMeasurement, floor_point
         rate = float(up @ at.size_slope["center"]) - 0.5  # d(floor_gap) / d(size)
         if abs(rate) < FLOOR_MIN_RATE:
             return FailedEstimate("exact", f"the floor fixes no size: the cube's bottom moves {rate:+.3f} m per metre "
-                                           f"of its size, under {FLOOR_MIN_RATE} (the camera looks along the floor)")
+                                           f"of its size, under {FLOOR_MIN_RATE}: it is seen at the camera's height (a "
+                                           "floor the camera looks along, or a cube off the floor)")
         step = -floor_gap(at, floor_point, up) / rate
         if size + step <= 0.0:  # (its bottom moves away from the floor as the cube grows: it lies beyond the eye)
             return FailedEstimate("exact", f"no size stands it on the floor (its bottom would reach the floor at "
