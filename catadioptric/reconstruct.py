@@ -75,7 +75,8 @@ def _check_floor(method, cube_size, on_floor, floor_height, floor_std):
     flag = "--on-floor" if on_floor else "--floor-height"
     if floor_std is not None:
         if not (np.isfinite(floor_std) and floor_std >= 0):
-            raise CatadioptricError(f"--floor-std: expected the σ of the floor's height in metres, >= 0, got {floor_std}")
+            raise CatadioptricError("--floor-std: expected the σ of the floor's height in metres, >= 0, "
+                                    f"got {floor_std}")
         if not on_floor and floor_height is None:
             raise CatadioptricError("--floor-std: the σ of the floor's height: give --on-floor or --floor-height")
     if on_floor or floor_height is not None:
@@ -187,9 +188,9 @@ def print_table(console, result: dict, truth: dict | None = None) -> None:
 
     from depth.estimate import EDGE_MISFIT_WARN_PX, edge_misfit_flagged
     floor = result.get("floor")
-    t = Table(title=f"{result['image']}: {len(result['cubes'])} cube(s), method {result['method']}"
-                    + ("" if floor is None else f", standing on a floor {floor['height']:+.4f} m along the mirror's axis"
-                                                + (f" (±{floor['std']:.4f})" if floor["std"] else "")))
+    on_floor = "" if floor is None else (f", standing on a floor {floor['height']:+.4f} m along the mirror's axis"
+                                         + (f" (±{floor['std']:.4f})" if floor["std"] else ""))
+    t = Table(title=f"{result['image']}: {len(result['cubes'])} cube(s), method {result['method']}{on_floor}")
     cols = ["#", "depth (m)", "±σ (m)", "size (m)", "centre (m)", "AR r_i", "misfit"]
     if truth:
         cols += ["true depth", "centre err", "size err"]

@@ -775,9 +775,10 @@ def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, comp
 def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, progress, compressed, blur_domain,
            workers, more=None, floor=None) -> Reconstruction:
     """`reconstruct`'s faces of the detections: each outlined and estimated (in worker processes), or
-    refused with the reason. `floor`: (a point of the floor, its σ) where the cubes stand on it (`_floor`). With `more` (a `depth.workers.Inbox`), `detections` are the coloured ones alone,
+    refused with the reason. With `more` (a `depth.workers.Inbox`), `detections` are the coloured ones alone,
     sent while the grey search goes on (`detect_cubes`' `coloured_found`), and the grey ones (`_packed`) come
-    from `more`: the coloured faces are outlined and estimated meanwhile."""
+    from `more`: the coloured faces are outlined and estimated meanwhile. `floor`: (a point of the floor, its
+    height's σ) where the cubes stand on it (`_floor`): each face read is fitted again there (`on_floor`)."""
     from raytrace.truth import mirror_rays
     from depth.measure import (FAINT_EDGE_CONTRAST, FAINT_EDGE_READINGS, NECK_REASON, blur_domain_evidence,
                                convex_filled, detection_order, extended_to_blob, face_outline, faint_regrowth,
@@ -1071,7 +1072,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         return _attached(meas, blob, img)
 
     def refits(fit, readings):
-        """`fit(i)` of each of the faces `readings` (`settled`'s), in worker processes, the last step of the progress."""
+        """`fit(i)` of each of the faces `readings` (`settled`'s), in worker processes: the progress's last step."""
         return fork_map(fit, len(readings), workers, cost=[expected_work(meas, "exact") for _, meas, _ in readings],
                         progress=None if progress is None else lambda done, n: progress(
                             ((steps - 1) * n + done) * len(detections) // n, steps * len(detections)))

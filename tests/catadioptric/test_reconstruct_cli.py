@@ -98,7 +98,8 @@ def floor_scene(tmp_path_factory):
         "scene": {"ground": True},
         "objects": [],
     }
-    for r, az, size, turn, color in ((0.45, -25.0, 0.04, 0.0, [0.85, 0.1, 0.1]), (0.6, 15.0, 0.03, 15.0, [0.1, 0.2, 0.85]),
+    for r, az, size, turn, color in ((0.45, -25.0, 0.04, 0.0, [0.85, 0.1, 0.1]),
+                                     (0.6, 15.0, 0.03, 15.0, [0.1, 0.2, 0.85]),
                                      (0.8, -5.0, 0.04, 0.0, [0.1, 0.7, 0.15])):
         a = np.deg2rad(az)
         x, z = r * np.sin(a), r * np.cos(a)
