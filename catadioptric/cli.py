@@ -167,11 +167,15 @@ def _cmd_design(args) -> int:
         console.print(f"maximum discernible depth from the axis: {des.max_depth_1px:.1f} m (ε = 1 px), "
                       f"{des.max_depth_01px:.1f} m (ε = 0.1 px)")
         t = Table(title=f"unit square (r_o = 1); expected error for a {100 * des.cube_size:.0f} cm cube, ±1 px extents")
-        for c in ("depth (m)", "AR r_i", "∂r_i/∂z (1/m)", "σ depth (mm)", "σ/depth (%)"):
+        for c in ("depth (m)", "AR r_i", "∂r_i/∂z (1/m)", "σ depth (mm)", "σ/depth (%)", "on the floor (%)"):
             t.add_column(c, justify="right")
         for i in range(0, len(des.depths), max(1, len(des.depths) // 10)):
+            floor = des.floor_error[i] / des.depths[i]
             t.add_row(f"{des.depths[i]:.3f}", f"{des.aspect_ratio[i]:.4f}", f"{des.sensitivity[i]:.4f}",
-                      f"{1e3 * des.expected_error[i]:.2f}", f"{100 * des.expected_error[i] / des.depths[i]:.2f}")
+                      f"{1e3 * des.expected_error[i]:.2f}", f"{100 * des.expected_error[i] / des.depths[i]:.2f}",
+                      f"{100 * floor:.3f}" if np.isfinite(floor) else "unseen")
+        t.caption = ("on the floor: a cube standing on the floor the mirror stands on (reconstruct --on-floor), its "
+                     "bottom edge ±1 px; unseen: its floor point is not in the image")
         console.print(t)
         if tm is not None:
             console.print(f"tiles: {tm.valid.sum()} of {tm.valid.size} fitted; z2/z1 {np.nanmin(tm.ratio):.2f}–"

@@ -124,14 +124,20 @@ class Design:
     max_depth_1px: float
     max_depth_01px: float
     pixels_per_kappa: tuple
+    floor_error: np.ndarray | None = None  # σ of depth of a cube standing on the floor, 1 px bottom edge (NaN: unseen)
 
     def to_dict(self) -> dict:
         return {"centre_fit": self.fit, "plane_distance_from_axis": self.plane_distance,
                 "cube_size": self.cube_size,
                 "max_discernible_depth": {"eps_1px": self.max_depth_1px, "eps_0.1px": self.max_depth_01px},
                 "curve": [{"depth": float(d), "aspect_ratio": float(r), "sensitivity": float(s),
-                           "expected_depth_error": float(e)}
-                          for d, r, s, e in zip(self.depths, self.aspect_ratio, self.sensitivity, self.expected_error)]}
+                           "expected_depth_error": float(e),
+                           **({} if self.floor_error is None else
+                              {"expected_depth_error_on_floor": None if not np.isfinite(f) else float(f)})}
+                          for d, r, s, e, f in zip(self.depths, self.aspect_ratio, self.sensitivity,
+                                                   self.expected_error,
+                                                   self.depths * np.nan if self.floor_error is None
+                                                   else self.floor_error)]}
 
 
 def design_setup(setup: Setup, depth_range=None, cube_size: float = 0.04, n: int = 25) -> Design:
@@ -171,10 +177,48 @@ def design_setup(setup: Setup, depth_range=None, cube_size: float = 0.04, n: int
     err = ddar.depth_std_from_aspect_ratio(r, sigma_r, z1, z2)
     L = max(setup.camera.resolution)
     return Design(fit=fit, plane_distance=float(plane_distance), depths=depths, aspect_ratio=r, sensitivity=sens,
-                  expected_error=err, cube_size=cube_size,
+                  expected_error=err, cube_size=cube_size, floor_error=floor_depth_error(setup, depths),
                   max_depth_1px=float(plane_distance + ddar.max_discernible_depth(z1, z2, eps=1.0 / L)),
                   max_depth_01px=float(plane_distance + ddar.max_discernible_depth(z1, z2, eps=0.1 / L)),
                   pixels_per_kappa=tuple(float(x) for x in px_per_kappa))
+
+
+def floor_depth_error(setup: Setup, depths, px: float = 1.0) -> np.ndarray:
+    """σ (m) of the depth of a cube standing on the floor the mirror stands on (its lower end; `catadioptric
+    reconstruct --on-floor`), at each of `depths` (from the mirror axis) along the azimuth the reflected ray of the
+    mirror centre's image point takes, from its bottom edge's place in the image off by `px` pixels vertically.
+    The floor then fixes each depth by the bottom edge's rays alone: each depth's floor point is imaged
+    (`reflection_pixels`), the pixels `px` above and below it are traced back to the floor, and half the span of
+    their distances from the axis is the σ. It falls as the camera stands higher over the floor, and does not
+    depend on the cube's size. NaN where the floor point is not seen in the image, or the rays `px` from it do not
+    meet the floor ahead."""
+    from raytrace.truth import reflection_pixels
+    camera, mirror, rays = _rays(setup)
+    depths = np.asarray(depths, dtype=np.float64)
+    out = np.full(depths.shape, np.nan)
+    x0, y0, x1, y1 = centre_roi(setup)
+    _, d, hit = rays(np.array([[(x0 + x1) / 2.0, (y0 + y1) / 2.0]]))
+    if not hit[0]:
+        return out
+    up = np.asarray(mirror.axis, dtype=np.float64)
+    heading = d[0] - (d[0] @ up) * up
+    if np.linalg.norm(heading) < 1e-9:
+        return out
+    heading /= np.linalg.norm(heading)
+    floor = np.asarray(mirror.center, dtype=np.float64) - up * mirror.height / 2.0
+    pix, seen = reflection_pixels(camera, mirror, floor + depths[:, None] * heading)
+    w, h = camera.resolution
+    seen &= np.all(np.isfinite(pix), axis=1) & (pix[:, 0] >= 0) & (pix[:, 0] <= w - 1) & (pix[:, 1] >= 0) & \
+        (pix[:, 1] <= h - 1)
+    reach = []
+    for step in (-px, px):
+        p, e, ok = rays(pix[seen] + [0.0, step])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = ((floor - p) @ up) / (e @ up)
+        q = p + t[:, None] * e
+        reach.append(np.where(ok & (t > 0), mirror.distance_to_axis(q), np.nan))
+    out[seen] = np.abs(reach[1] - reach[0]) / 2.0
+    return out
 
 
 def optimize_setup(setup: Setup, depth_range, cube_size: float = 0.04, distance_bounds=None, radius_bounds=None,
@@ -228,9 +272,13 @@ def plot_design(design: Design, path_or_buffer) -> None:
     ax[0].set(xlabel="depth from mirror axis (m)", ylabel="aspect ratio r_i (r_o = 1)", title="DDAR curve")
     ax[1].plot(design.depths, np.abs(design.sensitivity), color="tab:orange")
     ax[1].set(xlabel="depth (m)", ylabel="|∂r_i/∂z| (1/m)", title="sensitivity", yscale="log")
-    ax[2].plot(design.depths, 100 * design.expected_error / design.depths, color="tab:red")
-    ax[2].set(xlabel="depth (m)", ylabel="expected depth error (%)",
-              title=f"{100 * design.cube_size:.0f} cm cube, ±1 px extents")
+    ax[2].plot(design.depths, 100 * design.expected_error / design.depths, color="tab:red",
+               label=f"{100 * design.cube_size:.0f} cm cube, ±1 px extents")
+    if design.floor_error is not None and np.isfinite(design.floor_error).any():
+        ax[2].plot(design.depths, 100 * design.floor_error / design.depths, color="tab:green",
+                   label="standing on the floor (--on-floor), bottom edge ±1 px")
+    ax[2].set(xlabel="depth (m)", ylabel="expected depth error (%)", title="expected depth error", yscale="log")
+    ax[2].legend(fontsize=7)
     fig.suptitle(f"z1 = {design.fit['z1']:.4f} m, z2 = {design.fit['z2']:.4f} m, "
                  f"z2/z1 = {design.fit['ratio']:.2f}")
     fig.savefig(path_or_buffer, format="png", dpi=100)

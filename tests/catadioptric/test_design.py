@@ -70,6 +70,29 @@ def test_design_expected_error_grows_with_depth_and_bad_range_is_refused():
         design.design_setup(s, (0.05, 1.0))
 
 
+@pytest.mark.parametrize("radius, distance, focal", [(0.1, 0.55, 400.0), (0.075, 0.45, 350.0), (0.15, 0.9, 420.0)])
+def test_the_floor_depth_error_is_the_unfolded_pinhole_s(radius, distance, focal):
+    """A vertical cylinder's normals are horizontal, so a reflection keeps a ray's slope: unfolded, the camera
+    (0.5 m over the floor the mirror stands on, looking level at the mirror's centre) sees the floor point at
+    depth d along its own azimuth at the horizontal range L = D + d − 2R, tan(elevation) = H / L, a = H f / L px
+    below the image centre. One pixel either way moves it to H f / (a ∓ 1), half the span H f / (a² − 1): the
+    design's σ agrees to 1e-4, and is NaN exactly where a lies beyond the image's last row."""
+    s = mirror_setup(radius, distance, resolution=(640, 480), focal=focal)
+    edge = [0.5 * focal / a - distance + 2 * radius for a in (239.0, 241.5)]  # imaged half a row in, two rows out
+    depths = np.sort(np.r_[np.linspace(0.8 * distance, 2.2 * distance, 8), edge])
+    got = design.floor_depth_error(s, depths)
+    height, L = 0.5, distance + depths - 2 * radius
+    a = height * focal / L
+    seen = 239.5 + a <= 479
+    assert np.array_equal(np.isfinite(got), seen) and seen.sum() >= 5
+    assert got[seen] == pytest.approx(height * focal / (a[seen] ** 2 - 1), rel=1e-4)
+    des = design.design_setup(s, (depths[0], depths[-1]), n=8)
+    assert np.array_equal(des.floor_error, design.floor_depth_error(s, des.depths), equal_nan=True)
+    curve = des.to_dict()["curve"]
+    assert [c["expected_depth_error_on_floor"] is None for c in curve] == list(~np.isfinite(des.floor_error))
+    assert np.isfinite(des.floor_error).any() and not np.isfinite(des.floor_error).all()
+
+
 def test_fit_and_design_commands(capsys, valid_setup, write_setup, tmp_path):
     setup = write_setup(valid_setup)
     assert main(["fit", str(setup), "--roi", "60", "40", "100", "80", "--json"]) == 0
@@ -80,7 +103,8 @@ def test_fit_and_design_commands(capsys, valid_setup, write_setup, tmp_path):
     plot = tmp_path / "design.png"
     assert main(["design", str(setup), "--depth-range", "0.3", "1.0", "--plot", str(plot)]) == 0
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert str(plot) in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert str(plot) in printed and "on the floor (%)" in printed
     assert main(["design", str(setup), "--depth-range", "0.3", "1.0", "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
     assert len(d["curve"]) > 3 and d["max_discernible_depth"]["eps_1px"] > 0
