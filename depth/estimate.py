@@ -1895,10 +1895,11 @@ def estimate_face_on_floor(rays: RayFunction, meas: FaceMeasurement, floor_point
 
     Its σ (first order): the fit's at that size (centre and z, `first_order_cov`) and the floor's height σ
     `floor_std` (m), each carried through the size it moves (by the floor's rate, `FLOOR_MIN_RATE`), plus what
-    the turn profile widened the fit's σ by; its size σ is what they leave the size. A `FailedEstimate` where
-    the first fit fails, where the floor fixes no size, where the steps do not settle within `FLOOR_MAX_FITS`
-    fits, or where the face's own size lies over `FLOOR_REFUTED_SIGMAS` σ from the floor's (the cube does not
-    stand on it).
+    the turn profile (and `exact`'s other readings) widened the fit's σ by; its size σ is what they leave the
+    size. A `FailedEstimate` where the fits at both first sizes fail, where the floor fixes no size (the cube is
+    seen at the camera's height), where no positive size reaches the floor, where the steps do not settle within
+    `FLOOR_MAX_FITS` fits, or where the face's own size lies over `FLOOR_REFUTED_SIGMAS` σ from the floor's (in
+    these last three the cube does not stand on that floor).
     """
     up = np.asarray(up, dtype=np.float64)
     up = up / np.linalg.norm(up)
@@ -1959,7 +1960,7 @@ def _on_floor_std(at: CubeEstimate, up: np.ndarray, rate: float, floor_std: floa
     """`at` (`exact` at the size that stands it on the floor, whose bottom moves by `rate` per metre of size) with
     its σ: the fit's centre and z noise and the floor's height σ, each moving the size by −(its share of the
     bottom's height) / rate and the pose with it (`size_slope`), first order; plus the fit's σ beyond its first
-    order (the turn profile's widening)."""
+    order (the turn profile's widening, and the covering of `exact`'s other readings)."""
     cov = at.first_order_cov[np.ix_([0, 1, 2, 4], [0, 1, 2, 4])]  # centre (3) and z at that size
     noise = np.zeros((5, 5))  # centre (3), z, the floor's height
     noise[:4, :4] = cov
