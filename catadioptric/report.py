@@ -312,7 +312,11 @@ def build_report(inp: ReportInput, window_size=(1200, 800), progress=None) -> di
 
     # 5. The page.
     title = f"Reconstruction of {result.get('image', 'an image')}"
-    sub = (f"{len(cubes)} cube(s), method <code>{html.escape(str(result.get('method', '')))}</code>, setup "
+    floor = result.get("floor")  # (`reconstruct --on-floor`)
+    on_floor = "" if not isinstance(floor, dict) else (
+        f", standing on a floor {float(floor['height']):+.4f} m along the mirror's axis"
+        + (f" (±{float(floor['std']):.4f} m)" if floor.get("std") else ""))
+    sub = (f"{len(cubes)} cube(s), method <code>{html.escape(str(result.get('method', '')))}</code>{on_floor}, setup "
            f"<code>{html.escape(inp.setup_path.name)}</code>; "
            + ("errors against the simulation's truth." if truth else "no ground truth beside the image."))
     notes = "".join(f'<p class="note">{html.escape(n)}</p>' for n in inp.notes)
