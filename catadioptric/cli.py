@@ -214,7 +214,10 @@ def _cmd_reconstruct(args) -> int:
     truth = _truth_beside(args.image)
     overlay = rc.draw_overlay(image, rec) if args.overlay else None
     written = rc.write_outputs(result, json_path, args.overlay, overlay)
-    rc.print_table(Console(width=None if sys.stdout.isatty() else 120), result, truth)
+    console = Console(width=None if sys.stdout.isatty() else 120)
+    rc.print_table(console, result, truth)
+    if note := rc.floor_note(result, setup.mirror):
+        console.print(note)
     if not rec.cubes:
         print("no cube found (cubes are found by their colour, or, on a uniform background, as regions of "
               "another colour than it)" if not rec.refused else "no cube could be estimated")

@@ -136,6 +136,41 @@ def test_cubes_on_the_floor_are_read_to_their_depth_with_the_floor_s_sigma(floor
         assert abs(wide["depth"] - t["depth"]) < 2.0 * wide["uncertainty"]["depth"]
 
 
+def test_the_command_says_when_the_cubes_may_stand_on_the_floor(scene, floor_scene, capsys):
+    """Without `--on-floor`, the cubes standing on the floor are read by `exact` with their bottoms within 2 σ of
+    it, and the command says that `--on-floor` would fix their scale; the cubes floating 0.245 m over it are not."""
+    for folder, image, said in ((floor_scene, "floor.png", True), (scene, "mirror.png", False)):
+        capsys.readouterr()
+        assert main(["reconstruct", str(folder / image), "-o", str(folder / "plain.json")]) == 0
+        printed = " ".join(capsys.readouterr().out.split())
+        assert ("the cubes' bottoms lie within 2 σ of the floor the mirror stands on" in printed) == said, printed
+        assert ("--on-floor fixes each one's scale" in printed) == said
+
+
+def test_the_floor_note_weighs_each_bottom_by_its_sigma():
+    """`floor_note` on results made by hand (a mirror 0.49 m tall centred at the origin: its floor at y = -0.245):
+    two cubes whose bottoms lie 1.5 σ and 0.5 σ from it get the note, naming each; one 2.5 σ off does not; nor a
+    result read on a floor, at a known size (size σ 0), by another method, or with no cube."""
+    from types import SimpleNamespace
+
+    from catadioptric.reconstruct import floor_note
+    mirror = SimpleNamespace(center=(0.0, 0.0, 0.0), axis=(0.0, 2.0, 0.0), height=0.49)
+
+    def cube(bottom_mm, sd_centre_mm, size=0.04, sd_size_mm=2.0):
+        centre_y = -0.245 + bottom_mm / 1e3 + size / 2.0
+        return {"center": [0.1, centre_y, 0.7], "size": size,
+                "uncertainty": {"center": sd_centre_mm / 1e3, "size": sd_size_mm / 1e3, "depth": 0.01}}
+    sd = float(np.hypot(6.0, 1.0))  # mm: the centre's 6 and half the size's 2
+    near = [cube(1.5 * sd, 6.0), cube(-0.5 * sd, 6.0)]
+    note = floor_note({"method": "exact", "cubes": near}, mirror)
+    assert note is not None and f"#0 +{1.5 * sd:.1f} ± {sd:.1f} mm" in note and f"#1 -{0.5 * sd:.1f}" in note
+    assert floor_note({"method": "exact", "cubes": near + [cube(2.5 * sd, 6.0)]}, mirror) is None
+    assert floor_note({"method": "exact", "cubes": near, "floor": {"height": -0.245, "std": 0.0}}, mirror) is None
+    assert floor_note({"method": "exact", "cubes": [cube(0.0, 6.0, sd_size_mm=0.0)]}, mirror) is None
+    assert floor_note({"method": "ddar", "cubes": near}, mirror) is None
+    assert floor_note({"method": "exact", "cubes": []}, mirror) is None
+
+
 def test_cubes_off_the_floor_are_refused_not_read_at_the_floor_s_size(scene, capsys):
     """The two cubes of `scene` float at the camera's height, 0.245 m over the floor the mirror stands on: the size
     that would stand each on it (about 0.49 m) lies far beyond their edges' own 4 cm and its σ, so `--on-floor`
