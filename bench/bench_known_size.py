@@ -40,8 +40,18 @@ def _kwargs(reading: str, size: float, rng) -> dict:
     return dict(method=reading)
 
 
+def variant_images(renderer: str, sc, base):
+    """(variant, image, its seeded generator) of scene `sc`'s render `base`: ours in the reconstruct bench's four
+    variants, a Mitsuba render as it is (this bench's and `bench_on_floor`'s)."""
+    from bench.bench_reconstruct import VARIANTS, variant
+    key = int(sc.key[:8], 16)
+    for vname in VARIANTS if renderer == "ours" else ("mitsuba",):
+        yield (vname, variant(base, vname if renderer == "ours" else "clean", seed=key),
+               np.random.default_rng([key, (*VARIANTS, "mitsuba").index(vname)]))
+
+
 def run(quick: bool = False, log=print) -> dict:
-    from bench.bench_reconstruct import VARIANTS, _RayMapMemo, cases, mitsuba_image, our_render, score, variant
+    from bench.bench_reconstruct import _RayMapMemo, cases, mitsuba_image, our_render, score
     from depth.reconstruct import reconstruct
     from raytrace.truth import cube_truth
     records = []
@@ -57,9 +67,7 @@ def run(quick: bool = False, log=print) -> dict:
         if base is None:
             log(f"  {sc.name} (mitsuba): Mitsuba 3 not installed (pip install -e '.[bench]'), skipped")
             continue
-        for vname in VARIANTS if renderer == "ours" else ("mitsuba",):
-            img = variant(base, vname if renderer == "ours" else "clean", seed=int(sc.key[:8], 16))
-            rng = np.random.default_rng([int(sc.key[:8], 16), (*VARIANTS, "mitsuba").index(vname)])
+        for vname, img, rng in variant_images(renderer, sc, base):
             with _RayMapMemo():
                 for reading in READINGS:
                     kw = _kwargs(reading, truth[0]["size"], rng)

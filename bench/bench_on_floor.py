@@ -69,7 +69,8 @@ def _kwargs(reading: str, floor_height: float, rng) -> dict:
 
 
 def run(quick: bool = False, log=print) -> dict:
-    from bench.bench_reconstruct import VARIANTS, _RayMapMemo, our_render, score, variant
+    from bench.bench_known_size import variant_images
+    from bench.bench_reconstruct import _RayMapMemo, our_render, score
     from depth.reconstruct import reconstruct
     from raytrace.truth import cube_truth
     records = []
@@ -87,9 +88,7 @@ def run(quick: bool = False, log=print) -> dict:
         if base is None:
             log(f"  {sc.name} (mitsuba): Mitsuba 3 not installed (pip install -e '.[bench]'), skipped")
             continue
-        for vname in VARIANTS if renderer == "ours" else ("mitsuba",):
-            img = variant(base, vname if renderer == "ours" else "clean", seed=int(sc.key[:8], 16))
-            rng = np.random.default_rng([int(sc.key[:8], 16), (*VARIANTS, "mitsuba").index(vname)])
+        for vname, img, rng in variant_images(renderer, sc, base):
             timed = vname in ("clean", "mitsuba")
             with _RayMapMemo() if not timed else contextlib.nullcontext():  # (timed: the untouched pipeline)
                 for reading in READINGS:

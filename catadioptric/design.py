@@ -127,17 +127,16 @@ class Design:
     floor_error: np.ndarray | None = None  # σ of depth of a cube standing on the floor, 1 px bottom edge (NaN: unseen)
 
     def to_dict(self) -> dict:
+        curve = [{"depth": float(d), "aspect_ratio": float(r), "sensitivity": float(s),
+                  "expected_depth_error": float(e)}
+                 for d, r, s, e in zip(self.depths, self.aspect_ratio, self.sensitivity, self.expected_error)]
+        if self.floor_error is not None:  # (null where the floor there is not in the image)
+            for point, f in zip(curve, self.floor_error):
+                point["expected_depth_error_on_floor"] = float(f) if np.isfinite(f) else None
         return {"centre_fit": self.fit, "plane_distance_from_axis": self.plane_distance,
                 "cube_size": self.cube_size,
                 "max_discernible_depth": {"eps_1px": self.max_depth_1px, "eps_0.1px": self.max_depth_01px},
-                "curve": [{"depth": float(d), "aspect_ratio": float(r), "sensitivity": float(s),
-                           "expected_depth_error": float(e),
-                           **({} if self.floor_error is None else
-                              {"expected_depth_error_on_floor": None if not np.isfinite(f) else float(f)})}
-                          for d, r, s, e, f in zip(self.depths, self.aspect_ratio, self.sensitivity,
-                                                   self.expected_error,
-                                                   self.depths * np.nan if self.floor_error is None
-                                                   else self.floor_error)]}
+                "curve": curve}
 
 
 def design_setup(setup: Setup, depth_range=None, cube_size: float = 0.04, n: int = 25) -> Design:
