@@ -124,11 +124,13 @@ def _run_reconstruction(image_path, setup_path, method, cube_size, progress, blu
     from depth.errors import DepthError
     if on_floor:
         floor_height = -setup.mirror.height / 2.0
+    carried = setup.uncertainty is not None and method == "exact" and floor_height is None
     try:
         rec = reconstruct(image, setup.camera.build(), setup.mirror.build(), method=method,
                           cube_size=cube_size, progress=progress, compressed=is_jpeg(image_path),
                           blur_domain=blur_domain, workers=workers, cube_size_std=cube_size_std,
-                          floor_height=floor_height, floor_std=floor_std)
+                          floor_height=floor_height, floor_std=floor_std,
+                          setup_std=setup.uncertainty.build() if carried else None)
     except DepthError as exc:
         raise CatadioptricError(f"{image_path}: {exc}") from None
     return setup, setup_path, image, rec
@@ -144,7 +146,19 @@ def result_dict(image_path, setup_path, rec) -> dict:
         out["blur_domain"] = rec.blur_domain
     if getattr(rec, "floor", None) is not None:  # the floor the cubes were taken to stand on
         out["floor"] = {"height": rec.floor[0], "std": rec.floor[1]}
+    if getattr(rec, "setup_std", None) is not None:  # the setup's σ carried into the cubes' (its non-zero keys)
+        out["setup_uncertainty"] = dict(rec.setup_std.items())
     return out
+
+
+def setup_uncertainty_note(setup, result: dict, setup_path) -> str | None:
+    """The line saying that the setup's `[uncertainty]` was not carried into the σ (with a method other than
+    `exact`, or with a floor), else None."""
+    if setup.uncertainty is None or "setup_uncertainty" in result:
+        return None
+    why = "with a floor" if "floor" in result else f"not method {result['method']}'s"
+    return (f"note: {setup_path}'s [uncertainty] is carried through method exact's fit alone ({why}): the ±σ above "
+            "count the image's noise alone")
 
 
 OVERLAY_FACE = (255, 255, 0)
@@ -190,7 +204,8 @@ def print_table(console, result: dict, truth: dict | None = None) -> None:
     floor = result.get("floor")
     on_floor = "" if floor is None else (f", standing on a floor {floor['height']:+.4f} m along the mirror's axis"
                                          + (f" (±{floor['std']:.4f})" if floor["std"] else ""))
-    t = Table(title=f"{result['image']}: {len(result['cubes'])} cube(s), method {result['method']}{on_floor}")
+    carried = ", ±σ with the setup's uncertainty" if "setup_uncertainty" in result else ""
+    t = Table(title=f"{result['image']}: {len(result['cubes'])} cube(s), method {result['method']}{on_floor}{carried}")
     cols = ["#", "depth (m)", "±σ (m)", "size (m)", "centre (m)", "AR r_i", "misfit"]
     if truth:
         cols += ["true depth", "centre err", "size err"]

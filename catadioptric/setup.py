@@ -273,6 +273,43 @@ class SceneConfig:
                 "light_direction": list(self.light_direction), "ambient": self.ambient}
 
 
+@dataclass(frozen=True)
+class UncertaintyConfig:
+    """Optional `[uncertainty]` (an extension of the contract): the σ of the setup's own measured numbers, which
+    `reconstruct` carries into each cube's σ (`depth.setup_error`). Each key is optional, ≥ 0, and 0 by default
+    (that number taken as exact)."""
+
+    camera_position: float = 0.0  # metres, each coordinate, the camera's turn held (look_at moved with it)
+    camera_rotation_deg: float = 0.0  # about each of the camera's own axes
+    focal_px: float = 0.0  # fx and fy each
+    principal_px: float = 0.0  # cx and cy each
+    mirror_radius: float = 0.0  # metres
+    mirror_center: float = 0.0  # metres, each coordinate
+    mirror_axis_deg: float = 0.0  # the axis's tilt about each of two directions square to it
+
+    KEYS: ClassVar[tuple] = ("camera_position", "camera_rotation_deg", "focal_px", "principal_px", "mirror_radius",
+                             "mirror_center", "mirror_axis_deg")
+
+    @classmethod
+    def from_dict(cls, d: dict, source: str = "<dict>", prefix: str = "uncertainty.") -> "UncertaintyConfig":
+        w = _Where(source, prefix)
+        d = _table(d, w, prefix.rstrip("."))
+        _no_unknown(d, set(cls.KEYS), w)
+        values = {key: _number(d, key, w, default=0.0) for key in cls.KEYS}
+        for key, value in values.items():
+            if value < 0:
+                raise w.error(key, "a σ >= 0", value)
+        return cls(**values)
+
+    def to_dict(self) -> dict:
+        return {key: getattr(self, key) for key in self.KEYS if getattr(self, key) != 0.0}
+
+    def build(self):
+        """The `depth.setup_error.SetupStd` of this table."""
+        from depth.setup_error import SetupStd
+        return SetupStd(**{key: getattr(self, key) for key in self.KEYS})
+
+
 def euler_xyz_matrix(angles_deg) -> np.ndarray:
     """Rz(γ)·Ry(β)·Rx(α) for extrinsic "xyz" angles (α, β, γ) in degrees : (3, 3) float64."""
     a, b, g = np.deg2rad(np.asarray(angles_deg, dtype=np.float64))
@@ -285,7 +322,7 @@ def euler_xyz_matrix(angles_deg) -> np.ndarray:
 
 MIRROR_TYPES: dict[str, type] = {"cylinder": CylinderConfig}
 OBJECT_TYPES: dict[str, type] = {"cube": CubeConfig}
-TOP_KEYS = {"units", "camera", "mirror", "objects", "scene"}
+TOP_KEYS = {"units", "camera", "mirror", "objects", "scene", "uncertainty"}
 
 
 @dataclass(frozen=True)
@@ -297,6 +334,7 @@ class Setup:
     objects: tuple = ()
     scene: SceneConfig = field(default_factory=SceneConfig)
     units: str = "m"
+    uncertainty: UncertaintyConfig | None = None
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "<dict>", require_mirror: bool = True,
@@ -325,7 +363,9 @@ class Setup:
             otype = _string(od, "type", w.child(f"objects[{i}]"), choices=tuple(OBJECT_TYPES))
             objects.append(OBJECT_TYPES[otype].from_dict(od, source, prefix))
         scene = SceneConfig.from_dict(d["scene"], source) if "scene" in d else SceneConfig()
-        setup = cls(camera=camera, mirror=mirror, objects=tuple(objects), scene=scene, units=units)
+        uncertainty = UncertaintyConfig.from_dict(d["uncertainty"], source) if "uncertainty" in d else None
+        setup = cls(camera=camera, mirror=mirror, objects=tuple(objects), scene=scene, units=units,
+                    uncertainty=uncertainty)
         if check_geometry and mirror is not None:
             setup._check_geometry(source)
         return setup
@@ -336,6 +376,8 @@ class Setup:
             d["mirror"] = self.mirror.to_dict()
         if self.scene != SceneConfig():
             d["scene"] = self.scene.to_dict()
+        if self.uncertainty is not None:
+            d["uncertainty"] = self.uncertainty.to_dict()
         if self.objects:
             d["objects"] = [o.to_dict() for o in self.objects]
         return d

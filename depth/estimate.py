@@ -274,6 +274,9 @@ scipy's: there 2 of 3267 solves ran to 300, and `exact`'s results stay the same 
 _FD_STEP = np.sqrt(np.finfo(np.float64).eps)
 """Relative forward-difference step of `exact`'s Jacobians (scipy's '2-point' default)."""
 
+_RAY_STEP = 1e-6
+"""Central-difference step (metres of a ray's origin, units of its direction) of `CubeEstimate.ray_slopes`."""
+
 NO_SIDE_FACE_GAP_PX = 0.75
 """A measured silhouette gap (`FaceMeasurement.side_gaps_px`) up to this says no distinct side face
 shows beside that side of the front face (as `depth.measure.silhouette`'s `min_gap_px`): the side
@@ -390,7 +393,12 @@ class CubeEstimate:
     re-solved to first order; `exact_shape_prior` carries the common size's σ through it. first_order_cov
     (``exact`` only): (5, 5) first-order covariance of the centre (x, y, z), the size and z, from the edges'
     scatter alone (`std` widens it where the turn is unsure); `estimate_face_on_floor` reads how the centre's
-    height and z covary from it.
+    height and z covary from it. ray_slopes (``exact`` asked for them only): (the edge points (N, 2) px, (5, N, 6)
+    how the centre, size and z move per unit of each point's ray (its origin, then its direction), (5, 3) how
+    they move per radian of a turn of the scene's vertical about each world axis), the pose re-solved to first
+    order; `depth.setup_error` carries the setup's σ through them. setup_std (where the
+    setup's σ was carried in, `depth.setup_error.with_setup_std`): the setup's share of the σ of 'depth', 'size'
+    and 'center', which `std` includes.
     """
 
     method: str
@@ -407,6 +415,8 @@ class CubeEstimate:
     size_set_aside: bool = False
     size_slope: dict | None = None
     first_order_cov: np.ndarray | None = field(default=None, repr=False, compare=False)
+    ray_slopes: tuple | None = field(default=None, repr=False, compare=False)
+    setup_std: dict | None = None
 
     def __bool__(self) -> bool:
         return True
@@ -902,7 +912,7 @@ def _face_extent_px(directions, sgn, size, along, normal, px_per_m) -> np.ndarra
 # warnings would only alarm the user.
 @np.errstate(over="ignore", invalid="ignore", divide="ignore")
 def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local: LocalXSlit,
-           cube_size: float | None, up=None, defer: bool = False):
+           cube_size: float | None, up=None, defer: bool = False, ray_slopes: bool = False):
     """Non-central PnP of the square face (and its back vertical edges) from exact per-pixel rays.
 
     Residuals are pixel-like: each is a metric offset in the face (or side) plane divided by its
@@ -915,7 +925,8 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     Returns a `CubeEstimate` or a `FailedEstimate`; with `defer`, a fitted face comes as (its estimate
     with the first-order σ, a function giving the estimate with its σ complete): `estimate_face` fits
     some faces twice and keeps one, and the turn profile the σ reads (`sigma_profile`) is then run for
-    that one alone.
+    that one alone. With `ray_slopes`, the complete estimate carries how it moves with each edge point's
+    ray (`CubeEstimate.ray_slopes`).
     """
     sides = []
     for i, sp in enumerate(meas.sides_px):
@@ -1143,16 +1154,19 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     if np.count_nonzero(weight[sid < 4]) < 8:
         return FailedEstimate("exact", "too few edge points with a usable pixel scale")
 
-    def resids(x, w=None):
+    def resids(x, w=None, point_rays=None, frame=None):
         """Per pose of x (K, 7): the edge points' residuals (px), then the hidden-side penalties
-        (K, M); at the pixel scales `weight` or at w (K, N: one row per pose)."""
+        (K, M); at the pixel scales `weight` or at w (K, N: one row per pose); of the points' rays (p, d) or of
+        `point_rays` (origins, directions) in their place, the pose's turn taken from `base` or from `frame` in its
+        place (`point_ray_slopes`)."""
         rot, c, s = unpack(x)
-        axes = _square_axes(rot, base)
+        axes = _square_axes(rot, base if frame is None else frame)
         w = weight[None] if w is None else w
-        r = coords(p, d, c, axes, s) * w
+        q, r_dir = (p, d) if point_rays is None else point_rays
+        r = coords(q, r_dir, c, axes, s) * w
         r = np.where(np.isfinite(r), r, 0.0)
         if len(hid_idx):  # the image width (px) of a side face that must stay hidden, beyond its allowance
-            ext = np.maximum(_face_extent_px(d[hid_idx], sign[sid[hid_idx]], s, axes[:, 1], axes[:, 2],
+            ext = np.maximum(_face_extent_px(r_dir[hid_idx], sign[sid[hid_idx]], s, axes[:, 1], axes[:, 2],
                                              w[:, hid_idx]), 0.0)
             excess = np.where(np.isfinite(ext), np.maximum(ext - hid_allowed, 0.0), 0.0)
             r = np.concatenate([r, excess / SIDE_WIDTH_SIGMA_PX], axis=1)
@@ -1576,9 +1590,9 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         return FailedEstimate("exact", f"the edges do not fit one square face (rms misfit {rms:.2f} px)")
 
     # Propagate to the centre, size and z numerically.
-    def derived(x):
+    def derived(x, frame=None):
         rr, cc, ss = unpack(x)
-        nn = _square_axes(rr, base)[2]
+        nn = _square_axes(rr, base if frame is None else frame)[2]
         ctr = cc - nn * ss / 2.0  # the normal points toward the mirror; the cube lies behind the face
         return np.r_[ctr, ss, local.to_frame(ctr[None])[0, 2]]
     f0 = derived(x_best)
@@ -1620,6 +1634,46 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         slope = jac_best @ dx / s
         return {"center": slope[:3], "z": float(slope[4])}
     slope = None if cube_size is None else size_slope()
+
+    def point_ray_slopes():
+        """(5, N, 6): how this reading's centre (3), size and z move per unit of each edge point's ray, its
+        origin's three coordinates and then its direction's, the pose re-solved to first order as in `size_slope`
+        (each residual weighted by the soft-l1 loss's curvature, at the reading's pixel scales and faces, over the
+        parameters it was fitted over). Each residual depends on its own point's ray alone (a hidden-side penalty
+        on the ray of the point it was taken at), so one central difference moving every ray at once gives each
+        residual's change with its own ray. Then (5, 3): how they move per radian of a turn of the scene's
+        vertical `up` about each world axis (the frame an upright face turns in turned with it; a tilted
+        reading's free tilt takes it up)."""
+        free = tilted if upright_reading is not None else upright
+        h = (x_best[free] + _FD_STEP * np.maximum(1.0, np.abs(x_best[free]))) - x_best[free]
+        poses = np.repeat(x_best[None], len(free) + 1, axis=0)
+        poses[np.arange(1, len(free) + 1), free] += h
+        r = resids(poses)
+        jac = ((r[1:] - r[0]) / h[:, None]).T
+        w = (1.0 + r[0] ** 2) ** -0.75  # the square root of the curvature
+        solve = -np.linalg.pinv(w[:, None] * jac) * w  # (F, R): the pose's move per residual's move
+        grad = np.empty((r.shape[1], 6))  # each residual's change per unit of its ray's six coordinates
+        for k in range(6):
+            step = np.zeros(3)
+            step[k % 3] = _RAY_STEP
+            moved = [(p + step, d) if k < 3 else (p, d + step), (p - step, d) if k < 3 else (p, d - step)]
+            grad[:, k] = (resids(x_best[None], point_rays=moved[0])[0]
+                          - resids(x_best[None], point_rays=moved[1])[0]) / (2.0 * _RAY_STEP)
+        n = len(p)
+        moves = solve[:, :n, None] * grad[None, :n]  # (F, N, 6)
+        if len(hid_idx):
+            np.add.at(moves, (slice(None), hid_idx), solve[:, n:, None] * grad[None, n:])
+        turned = np.empty((r.shape[1], 3))  # each residual's change per radian of the frame's turn
+        direct = np.empty((5, 3))  # the centre's (behind the face, along its normal) at the same pose
+        for k in range(3):
+            spin = np.zeros(3)
+            spin[k] = _RAY_STEP
+            frames = [_square_axes(spin, np.eye(3)) @ base, _square_axes(-spin, np.eye(3)) @ base]
+            turned[:, k] = (resids(x_best[None], frame=frames[0])[0]
+                            - resids(x_best[None], frame=frames[1])[0]) / (2.0 * _RAY_STEP)
+            direct[:, k] = (derived(x_best, frames[0]) - derived(x_best, frames[1])) / (2.0 * _RAY_STEP)
+        return (np.einsum("df,fnc->dnc", jac_best[:, free], moves),
+                direct + jac_best[:, free] @ (solve @ turned))
 
     def complete_std(std):
         """The first-order σ widened by the turn profiles and by a reading the silhouette overruled."""
@@ -1700,7 +1754,8 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
 
     @np.errstate(over="ignore", invalid="ignore", divide="ignore")  # as `_exact`'s, when called after it
     def completed():
-        return estimate(complete_std(first_order))
+        est = estimate(complete_std(first_order))
+        return replace(est, ray_slopes=(pix, *point_ray_slopes())) if ray_slopes else est
 
     if defer:
         return estimate(first_order), completed
@@ -1983,7 +2038,8 @@ def _on_floor_std(at: CubeEstimate, up: np.ndarray, rate: float, floor_std: floa
 
 
 def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact",
-                  cube_size: float | None = None, seed: int = 0, up=None, defer: bool = False):
+                  cube_size: float | None = None, seed: int = 0, up=None, defer: bool = False,
+                  ray_slopes: bool = False):
     """Estimate one cube from its measured front face; returns `CubeEstimate` or `FailedEstimate`.
 
     Parameters
@@ -2001,6 +2057,9 @@ def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact
         An ``exact`` estimate comes as (the estimate with its first-order σ, a function giving it with its σ
         complete), as `_exact`'s `defer`: the same estimate, without the turn profile that completes its σ
         unless asked (`depth.reconstruct` compares a face's other reading by its centre first).
+    ray_slopes : bool
+        An ``exact`` estimate, complete, carries how it moves with each edge point's ray
+        (`CubeEstimate.ray_slopes`: `depth.setup_error` carries the setup's σ through them).
     """
     if method not in METHODS:
         raise DepthError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
@@ -2018,25 +2077,25 @@ def estimate_face(rays: RayFunction, meas: FaceMeasurement, method: str = "exact
     if method == "ddar":
         return start
     reading = _background_sides(rays, meas, start, local, cube_size, up,
-                                _silhouette_reading(rays, meas, start, local, cube_size, up))
+                                _silhouette_reading(rays, meas, start, local, cube_size, up, ray_slopes), ray_slopes)
     return reading if defer or not isinstance(reading, tuple) else reading[1]()
 
 
 def _silhouette_reading(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local: LocalXSlit,
-                        cube_size: float | None, up):
+                        cube_size: float | None, up, ray_slopes: bool = False):
     """`exact`'s reading of the face as the silhouette gaps tell it, deferred (`_exact`'s `defer`): (its estimate
     with the first-order σ, a function giving it with its σ complete), or a `FailedEstimate`."""
     gaps = _side_gaps(meas)
     _, _, thin = _gap_readings(meas)
     if not thin:
-        return _exact(rays, meas, start, local, cube_size, up, defer=True)
+        return _exact(rays, meas, start, local, cube_size, up, defer=True, ray_slopes=ray_slopes)
     # A silhouette a few tenths of a pixel beyond a sharp face's side: a distinct side face that thin,
     # or one lit like the front face and merged into its outline but for its last tenths of a pixel.
     # Both readings are fitted; the distinct one stands when its pose shows that side face about as
     # wide as the gap (nearer to it than the contour reading's 0). The σ is completed for that one.
-    est = _exact(rays, meas, start, local, cube_size, up, defer=True)
+    est = _exact(rays, meas, start, local, cube_size, up, defer=True, ray_slopes=ray_slopes)
     contour = _exact(rays, replace(meas, no_side_face_gap_px=NO_SIDE_FACE_GAP_PX), start, local, cube_size, up,
-                     defer=True)
+                     defer=True, ray_slopes=ray_slopes)
     if not est or not contour:
         return est or contour
     widths = [_side_face_width_px(rays, meas.sides_px[k], est[0], _vertical(local, up)) for k in thin]
@@ -2044,7 +2103,7 @@ def _silhouette_reading(rays: RayFunction, meas: FaceMeasurement, start: CubeEst
 
 
 def _background_sides(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local: LocalXSlit,
-                      cube_size: float | None, up, reading):
+                      cube_size: float | None, up, reading, ray_slopes: bool = False):
     """`reading` (deferred, as `_silhouette_reading` gives it), or the reading of the face with its left and right
     sides that show no side face beside them read as the front face's own edges, where that one explains them.
 
@@ -2068,7 +2127,8 @@ def _background_sides(rays: RayFunction, meas: FaceMeasurement, start: CubeEstim
         return reading
     gaps = _side_gaps(meas)
     gaps[no_gap] = np.nan
-    alt = _exact(rays, replace(meas, side_gaps_px=tuple(gaps)), start, local, cube_size, up, defer=True)
+    alt = _exact(rays, replace(meas, side_gaps_px=tuple(gaps)), start, local, cube_size, up, defer=True,
+                 ray_slopes=ray_slopes)
     if not isinstance(alt, tuple) or (est is not None and alt[0].rms_residual > BACKGROUND_SIDE_GAIN
                                       * est.rms_residual):
         return reading

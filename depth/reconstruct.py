@@ -64,6 +64,7 @@ class CubeResult:
                             "center": float(e.std.get("center", np.nan))},
             **({"uncertainty_scale": float(e.std["scale"])} if "scale" in e.std else {}),
             **({"size_set_aside": bool(e.size_set_aside)} if e.method == "exact_shape_prior" else {}),
+            **({"uncertainty_from_setup": dict(e.setup_std)} if e.setup_std is not None else {}),
             "front_face_normal": [float(x) for x in e.normal],
             "local_xslit": e.xslit,
             "edge_points": int(self.edge_points),
@@ -114,6 +115,7 @@ class Reconstruction:
     mirror_mask: np.ndarray = field(repr=False)
     blur_domain: str | None = None  # where the blur of blurred faces was taken to act; None: no face blurred
     floor: tuple | None = None  # (height along the mirror's axis from its centre, its σ) the cubes stood on; None: none
+    setup_std: object = None  # the `depth.setup_error.SetupStd` carried into the cubes' σ; None: the setup taken as exact
 
 
 def _image_array(image, resolution) -> np.ndarray:
@@ -536,7 +538,7 @@ def _side_to_grow(failed) -> int | None:
 def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: float | None = None,
                 progress=None, compressed: bool = False, blur_domain: str = "auto",
                 workers: int | None = None, cube_size_std: float | None = None, floor_height: float | None = None,
-                floor_std: float | None = None) -> Reconstruction:
+                floor_std: float | None = None, setup_std=None) -> Reconstruction:
     """Find and estimate every cube in a mirror image.
 
     Parameters
@@ -574,6 +576,10 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         fixes the scale. A cube whose edges refute that size is refused (it does not stand on the floor).
     floor_std : float, optional — the σ (m) of `floor_height` (with it alone), carried into each depth's σ.
         Default: the floor's height taken as exact.
+    setup_std : depth.setup_error.SetupStd, optional — the σ of the setup's own numbers (the camera's place,
+        turn, focal lengths and principal point; the mirror's radius, place and axis), carried into each cube's σ
+        through `exact`'s fit (method "exact" alone, and not with `floor_height`): `depth.setup_error`. Each
+        estimate's `setup_std` keeps that share apart. Default: the setup taken as exact.
     """
     from depth.measure import BLUR_DOMAINS, checked_images
 
@@ -591,6 +597,16 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     if blur_domain not in ("auto",) + BLUR_DOMAINS:
         raise DepthError(f"blur_domain: expected one of auto, {', '.join(BLUR_DOMAINS)}, got {blur_domain!r}")
     floor = _floor(mirror, method, cube_size, floor_height, floor_std)
+    if setup_std is not None:
+        from depth.setup_error import SetupStd
+        if not isinstance(setup_std, SetupStd):
+            raise DepthError(f"setup_std: expected a depth.setup_error.SetupStd, got {type(setup_std).__name__}")
+        if method != "exact" or floor is not None:
+            raise DepthError("setup_std: the setup's σ is carried through method exact's fit alone"
+                             + (", not with floor_height" if floor is not None else f", not {method}'s"))
+        if not all(hasattr(mirror, key) for key in ("radius", "center", "axis")):
+            raise DepthError("setup_std: carried through a cylindrical mirror's radius, centre and axis; this mirror "
+                             "has none")
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1):
         raise DepthError(f"workers: expected an integer >= 1, got {workers!r}")
     raw = _image_array(image, camera.resolution)
@@ -610,20 +626,25 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         if helper is not None:
             out = memory.arrays([(raw.shape, np.float64)] * (2 if compressed else 1))
             helper.send((_helper_faces, (memory, raw.shape, camera, mirror, method, cube_size, progress is not None,
-                                         compressed, blur_domain, workers, floor)))
+                                         compressed, blur_domain, workers, floor, setup_std is not None)))
         img = check_image(raw, camera.resolution, out=out[0])
         det_img = despeckled(raw if raw.dtype == np.uint8 else img, out=out[-1]) if compressed else img
         scipy_imported = import_in_background(SOLVER_MODULES) if helper is None else None
         # checked here once: not again by each face's outline, silhouette, blur evidence and regrowth
         with checked_images(img, det_img):
             rec = _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, compressed, blur_domain,
-                               workers, scipy_imported, helper, raw, floor)
+                               workers, scipy_imported, helper, raw, floor, setup_std is not None)
         if floor is not None:
             rec = replace(rec, floor=(float(floor_height), floor[1]))
-        if not cube_size_std:
-            return rec
-        carried = [with_size_std(c.estimate, cube_size_std) for c in rec.cubes]
-        return replace(rec, cubes=[replace(c, estimate=e, depth_std=e.std["z"]) for c, e in zip(rec.cubes, carried)])
+        if cube_size_std:
+            carried = [with_size_std(c.estimate, cube_size_std) for c in rec.cubes]
+            rec = replace(rec, cubes=[replace(c, estimate=e, depth_std=e.std["z"]) for c, e in zip(rec.cubes, carried)])
+        if setup_std is not None:
+            from depth.setup_error import with_setup_std
+            carried = [with_setup_std(c.estimate, camera, mirror, setup_std) for c in rec.cubes]
+            rec = replace(rec, cubes=[replace(c, estimate=e, depth_std=e.std["z"]) for c, e in zip(rec.cubes, carried)],
+                          setup_std=setup_std)
+        return rec
     finally:
         if helper is not None:
             helper.close()
@@ -637,7 +658,7 @@ def _helper_faces(job, relay, inbox) -> Reconstruction:
     coloured ones, then the grey ones (`_faces`' `more`)."""
     from depth.measure import checked_images
 
-    memory, shape, camera, mirror, method, cube_size, progress, compressed, blur_domain, workers, floor = job
+    memory, shape, camera, mirror, method, cube_size, progress, compressed, blur_domain, workers, floor, slopes = job
     img, *rest = memory.arrays([(shape, np.float64)] * (2 if compressed else 1))
     memory.close()
     det_img = rest[0] if compressed else img
@@ -646,7 +667,7 @@ def _helper_faces(job, relay, inbox) -> Reconstruction:
     with checked_images(img, det_img):
         rec = _faces(img, det_img, camera, mirror, mask, _unpacked(packed, mask_shape), method, cube_size,
                      relay if progress else None, compressed, blur_domain, workers, more=inbox if more else None,
-                     floor=floor)
+                     floor=floor, slopes=slopes)
     return replace(rec, mirror_mask=None)  # (the parent has it)
 
 
@@ -735,7 +756,7 @@ def _unpacked(packed, shape) -> list:
 
 
 def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, compressed, blur_domain, workers,
-                 scipy_imported, helper, raw=None, floor=None) -> Reconstruction:
+                 scipy_imported, helper, raw=None, floor=None, slopes=False) -> Reconstruction:
     """`reconstruct` of its checked image `img` (and `det_img`, the one cubes are detected on; `raw`, the image
     as it was given): the mirror region and the cubes detected in it here; their faces by the helper, where
     there is one, else here."""
@@ -769,16 +790,17 @@ def _reconstruct(img, det_img, camera, mirror, method, cube_size, progress, comp
     detections = detect_cubes(det_img, mask, compressed=compressed)
     scipy_imported()  # before any fork
     return _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, progress, compressed,
-                  blur_domain, workers, floor=floor)
+                  blur_domain, workers, floor=floor, slopes=slopes)
 
 
 def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, progress, compressed, blur_domain,
-           workers, more=None, floor=None) -> Reconstruction:
+           workers, more=None, floor=None, slopes=False) -> Reconstruction:
     """`reconstruct`'s faces of the detections: each outlined and estimated (in worker processes), or
     refused with the reason. With `more` (a `depth.workers.Inbox`), `detections` are the coloured ones alone,
     sent while the grey search goes on (`detect_cubes`' `coloured_found`), and the grey ones (`_packed`) come
     from `more`: the coloured faces are outlined and estimated meanwhile. `floor`: (a point of the floor, its
-    height's σ) where the cubes stand on it (`_floor`): each face read is fitted again there (`on_floor`)."""
+    height's σ) where the cubes stand on it (`_floor`): each face read is fitted again there (`on_floor`).
+    `slopes`: each `exact` estimate carries its `ray_slopes` (for the setup's σ: `depth.setup_error`)."""
     from raytrace.truth import mirror_rays
     from depth.measure import (FAINT_EDGE_CONTRAST, FAINT_EDGE_READINGS, NECK_REASON, blur_domain_evidence,
                                convex_filled, detection_order, extended_to_blob, face_outline, faint_regrowth,
@@ -933,7 +955,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
 
         def first_estimate(i, meas):
             return estimate_face(rays, _attached(meas, detections[i].mask, img), method=method,
-                                 cube_size=cube_size, up=up)
+                                 cube_size=cube_size, up=up, ray_slopes=slopes)
         outcomes, early = fork_chain(lambda i: outlined(detections[i]), first_estimate, len(detections), plan,
                                      workers, cost=[int(det.mask.sum()) for det in detections])
         grey = _unpacked(more.get(), mask.shape)
@@ -1007,7 +1029,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         meas, _, outline = measured[k]
         if est is None:
             est = first[k] if first[k] is not None else estimate_face(rays, meas, method=method, cube_size=cube_size,
-                                                                      up=up)
+                                                                      up=up, ray_slopes=slopes)
             if k in alternatives and outline.alternative is not None:  # (an outline redone encoded may have none)
                 # one off-colour pixel beside a side along the pixel grid is read as a strip (a side face)
                 # where the fit spans the pixel, else as a pixel mixing the face, a narrower strip and the
@@ -1022,7 +1044,8 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                 alt_outline = outline.alternative
                 alt_meas = _measurement(img, blob, alt_outline, face_px, channels, compressed)
                 # (its σ completed only where it is taken: its centre alone decides the covering)
-                alt = estimate_face(rays, alt_meas, method=method, cube_size=cube_size, up=up, defer=True)
+                alt = estimate_face(rays, alt_meas, method=method, cube_size=cube_size, up=up, defer=True,
+                                    ray_slopes=slopes)
                 alt, complete = alt if isinstance(alt, tuple) else (alt, lambda alt=alt: alt)
                 if alt and not est:
                     est, meas, outline = complete(), alt_meas, alt_outline
@@ -1037,7 +1060,8 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
             det, face_mask, channels = sources[k]
             for union, other in unions(det, face_mask, channels, "encoded" if domain == "encoded" else "linear"):
                 other_meas = _measurement(img, det.mask, other, _pixels(union), channels, compressed)
-                other_est = estimate_face(rays, other_meas, method=method, cube_size=cube_size, up=up)
+                other_est = estimate_face(rays, other_meas, method=method, cube_size=cube_size, up=up,
+                                          ray_slopes=slopes)
                 if verdict(k, other_est, other_meas) is None:
                     est, meas, outline, reason = other_est, other_meas, other, None
                     break
@@ -1055,7 +1079,8 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                     continue
                 _, other, _, other_meas = out
                 other_meas = _attached(other_meas, grown.mask, img)
-                other_est = estimate_face(rays, other_meas, method=method, cube_size=cube_size, up=up)
+                other_est = estimate_face(rays, other_meas, method=method, cube_size=cube_size, up=up,
+                                          ray_slopes=slopes)
                 if verdict(k, other_est, other_meas) is None:
                     est, meas, outline, reason, bbox = other_est, other_meas, other, None, grown.bbox
                     break

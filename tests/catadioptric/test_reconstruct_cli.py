@@ -83,6 +83,58 @@ def test_a_known_size_s_sigma_widens_each_depth_sigma_by_the_fit_s_size_slope(sc
         assert y["uncertainty"]["center"] > x["uncertainty"]["center"]
 
 
+def test_the_setup_s_uncertainty_table_widens_each_sigma_by_its_share(scene, capsys):
+    """A setup whose `[uncertainty]` says its camera's place is known to 1 mm: the cubes are the same; each
+    depth σ is the image's own (the same setup without it) and the setup's share (`uncertainty_from_setup`) in
+    quadrature, and the result names the σ carried (`setup_uncertainty`). That share is what whole runs of the
+    command make of it: the root sum of squares of each depth's move when the setup's camera is moved 1 mm along
+    x, y and z in turn, its look_at with it (within 10 %). With another method the table is not carried: the command says so."""
+    import tomli_w, tomllib
+    setup = tomllib.loads((scene / "mirror.toml").read_text())
+    setup["uncertainty"] = {"camera_position": 0.001}
+    (scene / "unsure.toml").write_text(tomli_w.dumps(setup))
+    plain, unsure = scene / "plain.json", scene / "unsure.json"
+    assert main(["reconstruct", str(scene / "mirror.png"), "-o", str(plain)]) == 0
+    capsys.readouterr()
+    assert main(["reconstruct", str(scene / "mirror.png"), "--setup", str(scene / "unsure.toml"),
+                 "-o", str(unsure)]) == 0
+    assert "±σ with the setup's uncertainty" in capsys.readouterr().out
+    a, b = (json.loads(p.read_text()) for p in (plain, unsure))
+    assert "setup_uncertainty" not in a and b["setup_uncertainty"] == setup["uncertainty"]
+    moves = []
+    for k in range(3):
+        moved = tomllib.loads((scene / "mirror.toml").read_text())
+        moved["camera"]["position"][k] += 0.001
+        moved["camera"]["look_at"][k] += 0.001  # (its turn held: `camera_rotation_deg` is the turn's own σ)
+        (scene / f"moved{k}.toml").write_text(tomli_w.dumps(moved))
+        assert main(["reconstruct", str(scene / "mirror.png"), "--setup", str(scene / f"moved{k}.toml"),
+                     "-o", str(scene / f"moved{k}.json")]) == 0
+        moves.append([c["depth"] for c in json.loads((scene / f"moved{k}.json").read_text())["cubes"]])
+    assert len(a["cubes"]) == len(b["cubes"]) == 2 and all(len(m) == 2 for m in moves)
+    for i, (x, y) in enumerate(zip(a["cubes"], b["cubes"])):
+        assert y["center"] == x["center"] and y["size"] == x["size"] and "uncertainty_from_setup" not in x
+        share = y["uncertainty_from_setup"]
+        whole_runs = np.sqrt(sum((m[i] - x["depth"]) ** 2 for m in moves))
+        assert share["depth"] == pytest.approx(whole_runs, rel=0.1), (share, whole_runs)
+        assert y["uncertainty"]["depth"] == pytest.approx(np.hypot(x["uncertainty"]["depth"], share["depth"]))
+        assert y["uncertainty"]["size"] == pytest.approx(np.hypot(x["uncertainty"]["size"], share["size"]))
+    other = scene / "ddar_unsure.json"
+    assert main(["reconstruct", str(scene / "mirror.png"), "--setup", str(scene / "unsure.toml"), "--method", "ddar",
+                 "-o", str(other)]) == 0
+    assert "[uncertainty] is carried through method exact's fit alone (not method ddar's)" in capsys.readouterr().out
+    assert "setup_uncertainty" not in json.loads(other.read_text())
+
+
+def test_a_bad_uncertainty_table_is_one_line_and_writes_nothing(scene, capsys, tmp_path):
+    import tomli_w, tomllib
+    setup = tomllib.loads((scene / "mirror.toml").read_text())
+    setup["uncertainty"] = {"mirror_radius": -0.0002}
+    bad = tmp_path / "bad.toml"
+    bad.write_text(tomli_w.dumps(setup))
+    _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--setup", str(bad), "-o",
+                            str(tmp_path / "o.json")], "bad.toml: uncertainty.mirror_radius: expected a σ >= 0")
+
+
 @pytest.fixture(scope="module")
 def floor_scene(tmp_path_factory):
     """An 800×600 render (looking down at the mirror's lower half) of three cubes standing on the floor the mirror

@@ -117,3 +117,34 @@ def test_rotation_is_scipys_extrinsic_xyz_euler(angles):
     from catadioptric.setup import euler_xyz_matrix
     np.testing.assert_allclose(euler_xyz_matrix(angles),
                                Rotation.from_euler("xyz", angles, degrees=True).as_matrix(), atol=1e-12)
+
+
+def test_the_uncertainty_table_is_optional_and_round_trips(valid_setup, write_setup, tmp_path):
+    """`[uncertainty]` (an extension): absent, none; given, each key its σ (0 where left out), kept through a
+    round trip (`simulate` writes the setup it rendered), and built into `depth.setup_error.SetupStd`."""
+    assert load_setup(write_setup(valid_setup)).uncertainty is None
+    valid_setup["uncertainty"] = {"camera_position": 0.001, "focal_px": 5, "mirror_axis_deg": 0.1}
+    s = load_setup(write_setup(valid_setup))
+    assert s.uncertainty.camera_position == 0.001 and s.uncertainty.focal_px == 5.0
+    assert s.uncertainty.mirror_radius == 0.0 and s.uncertainty.principal_px == 0.0
+    p = tmp_path / "again.toml"
+    save_setup(s, p)
+    assert load_setup(p) == s and "[uncertainty]" in p.read_text()
+    std = s.uncertainty.build()
+    assert dict(std.items()) == {"camera_position": 0.001, "focal_px": 5.0, "mirror_axis_deg": 0.1}
+
+
+@pytest.mark.parametrize("table, message", [
+    ({"focal_px": -1.0}, "uncertainty.focal_px: expected a σ >= 0, got -1.0"),
+    ({"mirror_radius": "0.1"}, "uncertainty.mirror_radius: expected a finite number"),
+    ({"camera_position": math.inf}, "uncertainty.camera_position: expected a finite number"),
+    ({"camera_position": [0.001, 0.001, 0.001]}, "uncertainty.camera_position: expected a finite number"),
+    ({"focal": 1.0}, "uncertainty.focal: unknown key"),
+    (0.1, "uncertainty: expected a table"),
+])
+def test_a_bad_uncertainty_table_gives_a_one_line_error_naming_file_and_key(valid_setup, write_setup, table, message):
+    valid_setup["uncertainty"] = table
+    path = write_setup(valid_setup, "bad.toml")
+    with pytest.raises(SetupError, match=message) as info:
+        load_setup(path)
+    assert str(info.value).startswith(str(path) + ": ") and "\n" not in str(info.value)

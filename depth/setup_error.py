@@ -1,0 +1,132 @@
+"""The setup's own uncertainty, carried into each cube's σ.
+
+A setup file's numbers are measured: the camera's place and turn, its focal lengths and principal point, the
+mirror's radius, place and axis. `exact`'s σ counts the edges' noise alone, as if the setup were exact. A
+setup off by a millimetre moves every edge point's reflected ray, and with them the fitted cube.
+
+`exact`, asked for them (`estimate_face(..., ray_slopes=True)`), gives how its reading moves per unit of each
+edge point's ray (`CubeEstimate.ray_slopes`: the pose re-solved to first order, as `size_slope` re-solves it as
+the size moves). Each setup parameter moved by ±1 σ moves the points' rays, traced again through the camera and
+the mirror so moved; the reading's move is their sum through those slopes, half the difference between +σ and
+−σ: one σ of that parameter's effect. The parameters are taken as independent of each other; their effects add
+in quadrature. The depth is the distance from the mirror's axis, so a parameter that moves the axis moves it
+also through the axis: a camera and mirror moved together move the cube with them and its depth not at all.
+`exact` fits a face upright along the mirror's axis (the scene's vertical) unless its edges say otherwise, so a
+turn of the axis also turns the frame such a face turns in (`ray_slopes`' second part).
+
+The setup's errors are common to every cube of an image: their shares of the cubes' σ are not independent
+from cube to cube, unlike the edges' noise.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+
+from depth.errors import DepthError
+from depth.estimate import CubeEstimate
+
+
+@dataclass(frozen=True)
+class SetupStd:
+    """The σ of each of a setup's measured numbers (0: taken as exact).
+
+    camera_position : metres, each coordinate of the camera's centre, its turn held (its look_at moved with it)
+    camera_rotation_deg : degrees, the camera's turn about each of its own axes (x right, y down, z forward)
+    focal_px : pixels, each of fx and fy
+    principal_px : pixels, each of cx and cy
+    mirror_radius : metres
+    mirror_center : metres, each coordinate of the mirror's centre
+    mirror_axis_deg : degrees, the axis's tilt about each of two directions square to it
+    """
+
+    camera_position: float = 0.0
+    camera_rotation_deg: float = 0.0
+    focal_px: float = 0.0
+    principal_px: float = 0.0
+    mirror_radius: float = 0.0
+    mirror_center: float = 0.0
+    mirror_axis_deg: float = 0.0
+
+    def __post_init__(self):
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or not (
+                    np.isfinite(value) and value >= 0):
+                raise DepthError(f"setup_std.{f.name}: expected a σ >= 0, got {value!r}")
+            object.__setattr__(self, f.name, float(value))
+
+    def items(self) -> list:
+        """(name, σ) of the parameters whose σ is not 0."""
+        return [(f.name, getattr(self, f.name)) for f in fields(self) if getattr(self, f.name) > 0]
+
+
+def _moved(camera, mirror, name: str, k: int, delta: float):
+    """(camera, mirror) with parameter `name`'s k-th component moved by delta (its unit)."""
+    from scipy.spatial.transform import Rotation  # (not at import: the command's start-up does without scipy)
+
+    if name == "camera_position":
+        return replace(camera, position=camera.position + delta * np.eye(3)[k]), mirror
+    if name == "camera_rotation_deg":
+        turn = Rotation.from_rotvec(np.deg2rad(delta) * camera.R[k]).as_matrix()  # about the camera's own axis k
+        return replace(camera, R=camera.R @ turn.T), mirror
+    if name in ("focal_px", "principal_px"):
+        K = camera.K.copy()
+        K[k, k if name == "focal_px" else 2] += delta
+        return replace(camera, K=K), mirror
+    if name == "mirror_radius":
+        return camera, replace(mirror, radius=mirror.radius + delta)
+    if name == "mirror_center":
+        return camera, replace(mirror, center=mirror.center + delta * np.eye(3)[k])
+    # mirror_axis_deg: about the frame's k-th direction square to the axis
+    turn = Rotation.from_rotvec(np.deg2rad(delta) * mirror.frame[k]).as_matrix()
+    return camera, replace(mirror, axis=turn @ mirror.axis)
+
+
+_COMPONENTS = {"camera_position": 3, "camera_rotation_deg": 3, "focal_px": 2, "principal_px": 2, "mirror_radius": 1,
+               "mirror_center": 3, "mirror_axis_deg": 2}
+
+
+def setup_effects(est: CubeEstimate, camera, mirror, std: SetupStd) -> list:
+    """Per setup parameter component with a σ: (name, k, the move of the centre (3), size, z and depth (6,) at one
+    σ of it, half the difference between +σ and −σ). `est` must carry its `ray_slopes`."""
+    from raytrace.truth import mirror_rays
+
+    if est.ray_slopes is None:
+        raise DepthError(f"setup_std: carried through method exact's fit alone, not {est.method}'s")
+    if not all(hasattr(mirror, key) for key in ("radius", "center", "axis")):
+        raise DepthError("setup_std: carried through a cylindrical mirror's radius, centre and axis; this mirror "
+                         "has none")
+    pix, slopes, up_slopes = est.ray_slopes
+
+    def traced(cam, mir):
+        r = mirror_rays(cam, mir, pix)
+        return np.concatenate([r.points, r.directions], axis=1)
+
+    here = traced(camera, mirror)
+    out = []
+    for name, sigma in std.items():
+        for k in range(_COMPONENTS[name]):
+            plus, minus = _moved(camera, mirror, name, k, sigma), _moved(camera, mirror, name, k, -sigma)
+            # a point whose ray leaves the mirror either way is held where it was
+            delta = np.nan_to_num(0.5 * (traced(*plus) - traced(*minus)), nan=0.0, posinf=0.0, neginf=0.0)
+            delta[~np.all(np.isfinite(here), axis=1)] = 0.0
+            move = np.einsum("fnc,nc->f", slopes, delta)
+            if name == "mirror_axis_deg":  # the scene's vertical, the axis, turns too: an upright face with it
+                move += up_slopes @ (np.deg2rad(sigma) * mirror.frame[k])
+            depths = [m.distance_to_axis((est.center + sgn * move[:3])[None])[0]
+                      for sgn, (_, m) in ((1.0, plus), (-1.0, minus))]
+            out.append((name, k, np.r_[move, 0.5 * (depths[0] - depths[1])]))
+    return out
+
+
+def with_setup_std(est: CubeEstimate, camera, mirror, std: SetupStd) -> CubeEstimate:
+    """`est` with the setup's σ carried into its own: each σ ('z' is the depth's, 'size', 'center') in quadrature
+    with the setup's share (`setup_effects`), which `CubeEstimate.setup_std` keeps apart ('depth', 'size',
+    'center')."""
+    effects = setup_effects(est, camera, mirror, std)
+    var = np.sum([e ** 2 for _, _, e in effects], axis=0) if effects else np.zeros(6)
+    share = {"depth": float(np.sqrt(var[5])), "size": float(np.sqrt(var[3])), "center": float(np.sqrt(var[:3].sum()))}
+    return replace(est, std={**est.std, "z": float(np.hypot(est.std["z"], share["depth"])),
+                             "size": float(np.hypot(est.std["size"], share["size"])),
+                             "center": float(np.hypot(est.std["center"], share["center"]))}, setup_std=share)
