@@ -219,7 +219,7 @@ def _cmd_reconstruct(args) -> int:
     if note := rc.floor_note(result, setup.mirror):
         console.print(note)
     if note := rc.setup_uncertainty_note(setup, result, setup_path):
-        console.print(note, markup=False)
+        console.print(note, markup=False, soft_wrap=True)
     if not rec.cubes:
         print("no cube found (cubes are found by their colour, or, on a uniform background, as regions of "
               "another colour than it)" if not rec.refused else "no cube could be estimated")
