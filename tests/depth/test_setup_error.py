@@ -128,3 +128,49 @@ def test_a_setup_taken_as_exact_adds_nothing_and_bad_sigmas_are_refused(rig):
             SetupStd(focal_px=bad)
     with pytest.raises(DepthError, match="carried through method exact's fit alone"):
         setup_effects(replace(est, ray_slopes=None), rig.camera, rig.mirror, SetupStd(focal_px=1.0))
+
+
+def test_each_number_moves_what_its_name_says(rig):
+    """`_moved`: the camera's place along a world axis, its turn held; a turn about the camera's own axis k leaving
+    that axis where it was and turning the others by the angle; fx, fy, cx, cy; the radius; the mirror's centre;
+    its axis tilted by the angle, square to it."""
+    from raytrace.camera import PinholeCamera
+    cam, mir = PinholeCamera.from_look_at((800, 600), (1750.0, 1700.0), None, (0.1, 0.2, 0.55), (0.0, 0.05, 0.0),
+                                          (0.1, 1.0, 0.0)), rig.mirror  # turned about every axis
+    c, m = _moved(cam, mir, "camera_position", 2, 0.003)
+    assert np.allclose(c.position - cam.position, [0, 0, 0.003]) and np.array_equal(c.R, cam.R) and m is mir
+    for k in range(3):
+        c, _ = _moved(cam, mir, "camera_rotation_deg", k, 2.0)
+        assert np.allclose(c.R[k], cam.R[k])
+        for j in {0, 1, 2} - {k}:
+            assert np.degrees(np.arccos(np.clip(c.R[j] @ cam.R[j], -1, 1))) == pytest.approx(2.0)
+    for name, k, cell in (("focal_px", 0, (0, 0)), ("focal_px", 1, (1, 1)), ("principal_px", 0, (0, 2)),
+                          ("principal_px", 1, (1, 2))):
+        c, _ = _moved(cam, mir, name, k, 1.5)
+        moved = np.zeros((3, 3))
+        moved[cell] = 1.5
+        assert np.allclose(c.K - cam.K, moved)
+    _, m = _moved(cam, mir, "mirror_radius", 0, 0.001)
+    assert m.radius == pytest.approx(mir.radius + 0.001)
+    _, m = _moved(cam, mir, "mirror_center", 0, -0.002)
+    assert np.allclose(m.center - mir.center, [-0.002, 0, 0])
+    for k in range(2):
+        _, m = _moved(cam, mir, "mirror_axis_deg", k, 0.5)
+        assert np.degrees(np.arccos(m.axis @ mir.axis)) == pytest.approx(0.5)
+        assert abs((m.axis - mir.axis) @ mir.frame[k]) < 1e-12  # tilted about frame[k], so not toward it
+
+
+def test_reconstruct_refuses_a_setup_sigma_it_cannot_carry(rig):
+    """`reconstruct(setup_std=)`: carried through method exact's fit alone, not with a floor, and only a
+    `SetupStd`: one-line errors before any work."""
+    from depth.reconstruct import reconstruct
+    image = np.zeros((600, 800, 3), np.uint8)
+    std = SetupStd(focal_px=1.0)
+    for kwargs, message in ((dict(method="ddar"), "not ddar's"), (dict(method="exact_shape_prior"),
+                                                                    "not exact_shape_prior's"),
+                            (dict(floor_height=-0.245), "not with floor_height")):
+        with pytest.raises(DepthError, match=f"setup_std: the setup's σ is carried through method exact's fit alone, "
+                                             f"{message}"):
+            reconstruct(image, rig.camera, rig.mirror, setup_std=std, **kwargs)
+    with pytest.raises(DepthError, match="setup_std: expected a depth.setup_error.SetupStd, got dict"):
+        reconstruct(image, rig.camera, rig.mirror, setup_std={"focal_px": 1.0})
