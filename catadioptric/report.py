@@ -316,8 +316,12 @@ def build_report(inp: ReportInput, window_size=(1200, 800), progress=None) -> di
     on_floor = "" if not isinstance(floor, dict) else (
         f", standing on a floor {float(floor['height']):+.4f} m along the mirror's axis"
         + (f" (±{float(floor['std']):.4f} m)" if floor.get("std") else ""))
+    carried = result.get("setup_uncertainty")  # (a setup with an `[uncertainty]` table)
+    unsure = "" if not isinstance(carried, dict) else (
+        "; ±σ including the setup's own σ ("
+        + ", ".join(f"{html.escape(str(k))} {html.escape(str(v))}" for k, v in carried.items()) + ")")
     sub = (f"{len(cubes)} cube(s), method <code>{html.escape(str(result.get('method', '')))}</code>{on_floor}, setup "
-           f"<code>{html.escape(inp.setup_path.name)}</code>; "
+           f"<code>{html.escape(inp.setup_path.name)}</code>{unsure}; "
            + ("errors against the simulation's truth." if truth else "no ground truth beside the image."))
     notes = "".join(f'<p class="note">{html.escape(n)}</p>' for n in inp.notes)
     sec = [notes, "<h2>Results</h2>", _table_html(result, truth, colors),

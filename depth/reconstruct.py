@@ -115,7 +115,7 @@ class Reconstruction:
     mirror_mask: np.ndarray = field(repr=False)
     blur_domain: str | None = None  # where the blur of blurred faces was taken to act; None: no face blurred
     floor: tuple | None = None  # (height along the mirror's axis from its centre, its σ) the cubes stood on; None: none
-    setup_std: object = None  # the `depth.setup_error.SetupStd` carried into the cubes' σ; None: the setup taken as exact
+    setup_std: object = None  # the `depth.setup_error.SetupStd` carried into the cubes' σ; None: the setup exact
 
 
 def _image_array(image, resolution) -> np.ndarray:

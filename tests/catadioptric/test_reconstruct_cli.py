@@ -88,7 +88,8 @@ def test_the_setup_s_uncertainty_table_widens_each_sigma_by_its_share(scene, cap
     depth σ is the image's own (the same setup without it) and the setup's share (`uncertainty_from_setup`) in
     quadrature, and the result names the σ carried (`setup_uncertainty`). That share is what whole runs of the
     command make of it: the root sum of squares of each depth's move when the setup's camera is moved 1 mm along
-    x, y and z in turn, its look_at with it (within 10 %). With another method the table is not carried: the command says so."""
+    x, y and z in turn, its look_at with it (within 10 %). With another method the table is not carried: the
+    command says so."""
     import tomli_w, tomllib
     setup = tomllib.loads((scene / "mirror.toml").read_text())
     setup["uncertainty"] = {"camera_position": 0.001}

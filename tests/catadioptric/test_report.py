@@ -306,10 +306,13 @@ def test_report_from_result_json_and_without_the_image(sim, tmp_path):
     assert "standing on a floor" not in (tmp_path / "a" / "index.html").read_text()
     data["cubes"][0]["edge_misfit_px"] = 2.0 * EDGE_MISFIT_WARN_PX
     data["floor"] = {"height": -0.245, "std": 0.001}  # as `reconstruct --on-floor --floor-std 0.001` writes it
+    data["setup_uncertainty"] = {"camera_position": 0.001, "mirror_axis_deg": 0.1}  # as a setup's [uncertainty] gives
     res.write_text(json.dumps(data))
     report.report(res, tmp_path / "f", window_size=WINDOW)
     page = (tmp_path / "f" / "index.html").read_text()
     assert "standing on a floor -0.2450 m along the mirror's axis (±0.0010 m)" in page
+    assert "±σ including the setup's own σ (camera_position 0.001, mirror_axis_deg 0.1)" in page
+    assert "setup's own σ" not in (tmp_path / "a" / "index.html").read_text()
     marked = read_png(tmp_path / "f" / "annotated.png").astype(float)
     for img, n in ((plain, 0), (marked, 20)):
         orange = np.linalg.norm(img - np.array(OVERLAY_FLAGGED, dtype=float), axis=-1) < 40
