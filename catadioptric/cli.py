@@ -151,7 +151,12 @@ def _cmd_design(args) -> int:
               f"for {100 * args.cube_size:.0f} cm cubes over {args.depth_range[0]}-{args.depth_range[1]} m")
         print(setup_to_toml(best))
         return 0
-    des = design.design_setup(setup, args.depth_range, args.cube_size)
+    if setup.uncertainty is not None:  # the setup's own σ: a cube's exact edges read at each depth, some seconds
+        with Progress("carrying the setup's uncertainty") as bar:
+            des = design.design_setup(setup, args.depth_range, args.cube_size, setup_std=setup.uncertainty.build(),
+                                      progress=bar)
+    else:
+        des = design.design_setup(setup, args.depth_range, args.cube_size)
     tm = design.fit_tile_map(setup, args.tiles) if args.tiles else None
     if args.json:
         d = des.to_dict()
@@ -167,16 +172,34 @@ def _cmd_design(args) -> int:
         console.print(f"maximum discernible depth from the axis: {des.max_depth_1px:.1f} m (ε = 1 px), "
                       f"{des.max_depth_01px:.1f} m (ε = 0.1 px)")
         t = Table(title=f"unit square (r_o = 1); expected error for a {100 * des.cube_size:.0f} cm cube, ±1 px extents")
-        for c in ("depth (m)", "AR r_i", "∂r_i/∂z (1/m)", "σ depth (mm)", "σ/depth (%)", "on the floor (%)"):
+        unsure = des.setup_error
+        for c in ("depth (m)", "AR r_i", "∂r_i/∂z (1/m)", "σ depth (mm)", "σ/depth (%)", "on the floor (%)",
+                  *(("setup σ (mm)",) if unsure else ())):
             t.add_column(c, justify="right")
-        for i in range(0, len(des.depths), max(1, len(des.depths) // 10)):
+        rows = range(0, len(des.depths), max(1, len(des.depths) // 10))
+        for i in rows:
             floor = des.floor_error[i] / des.depths[i]
             t.add_row(f"{des.depths[i]:.3f}", f"{des.aspect_ratio[i]:.4f}", f"{des.sensitivity[i]:.4f}",
                       f"{1e3 * des.expected_error[i]:.2f}", f"{100 * des.expected_error[i] / des.depths[i]:.2f}",
-                      f"{100 * floor:.3f}" if np.isfinite(floor) else "unseen")
+                      f"{100 * floor:.3f}" if np.isfinite(floor) else "unseen",
+                      *((f"{1e3 * unsure['total'][i]:.2f}" if np.isfinite(unsure["total"][i]) else "unseen",)
+                        if unsure else ()))
         t.caption = ("on the floor: a cube standing on the floor the mirror stands on (reconstruct --on-floor), its "
-                     "bottom edge ±1 px; unseen: its floor point is not in the image")
+                     "bottom edge ±1 px; unseen: its floor point is not in the image"
+                     + ("; setup σ: the depth σ the setup's \\[uncertainty] gives that cube, facing the axis at the "
+                        "mirror centre's height, its edges exact (unseen: not wholly in the image)" if unsure else ""))
         console.print(t)
+        if unsure:
+            # which number of the setup to measure better: each one's share of the depth σ
+            u = Table(title="depth σ (mm) per \\[uncertainty] number")
+            u.add_column("number", justify="left", no_wrap=True)
+            near_to_far = sorted({0, len(des.depths) // 2, len(des.depths) - 1})
+            for i in near_to_far:
+                u.add_column(f"at {des.depths[i]:.3f} m", justify="right")
+            for name in unsure:
+                u.add_row(name, *(f"{1e3 * unsure[name][i]:.2f}" if np.isfinite(unsure[name][i]) else "—"
+                                  for i in near_to_far))
+            console.print(u)
         if tm is not None:
             console.print(f"tiles: {tm.valid.sum()} of {tm.valid.size} fitted; z2/z1 {np.nanmin(tm.ratio):.2f}–"
                           f"{np.nanmax(tm.ratio):.2f}; baseline {np.nanmin(tm.baseline):.4f}–{np.nanmax(tm.baseline):.4f} m")

@@ -125,6 +125,7 @@ class Design:
     max_depth_01px: float
     pixels_per_kappa: tuple
     floor_error: np.ndarray | None = None  # σ of depth of a cube standing on the floor, 1 px bottom edge (NaN: unseen)
+    setup_error: dict | None = None  # σ of depth from the setup's own σ, per number and 'total' (`setup_depth_error`)
 
     def to_dict(self) -> dict:
         curve = [{"depth": float(d), "aspect_ratio": float(r), "sensitivity": float(s),
@@ -133,14 +134,21 @@ class Design:
         if self.floor_error is not None:  # (null where the floor there is not in the image)
             for point, f in zip(curve, self.floor_error):
                 point["expected_depth_error_on_floor"] = float(f) if np.isfinite(f) else None
+        if self.setup_error is not None:  # (null where the cube is not wholly in the image)
+            for i, point in enumerate(curve):
+                point["expected_depth_error_from_setup"] = {
+                    name: float(v[i]) if np.isfinite(v[i]) else None for name, v in self.setup_error.items()}
         return {"centre_fit": self.fit, "plane_distance_from_axis": self.plane_distance,
                 "cube_size": self.cube_size,
                 "max_discernible_depth": {"eps_1px": self.max_depth_1px, "eps_0.1px": self.max_depth_01px},
                 "curve": curve}
 
 
-def design_setup(setup: Setup, depth_range=None, cube_size: float = 0.04, n: int = 25) -> Design:
-    """Design numbers of a setup at the image centre (see the module docstring)."""
+def design_setup(setup: Setup, depth_range=None, cube_size: float = 0.04, n: int = 25, setup_std=None,
+                 progress=None) -> Design:
+    """Design numbers of a setup at the image centre (see the module docstring). With `setup_std` (a
+    `depth.setup_error.SetupStd`), also the depth error the setup's own σ gives (`setup_depth_error`; `progress`
+    is called as each depth is done)."""
     from depth import ddar
     roi = centre_roi(setup)
     fit, frame = _fit_frame(setup, roi)
@@ -177,6 +185,8 @@ def design_setup(setup: Setup, depth_range=None, cube_size: float = 0.04, n: int
     L = max(setup.camera.resolution)
     return Design(fit=fit, plane_distance=float(plane_distance), depths=depths, aspect_ratio=r, sensitivity=sens,
                   expected_error=err, cube_size=cube_size, floor_error=floor_depth_error(setup, depths),
+                  setup_error=None if setup_std is None else setup_depth_error(setup, depths, setup_std, cube_size,
+                                                                               progress),
                   max_depth_1px=float(plane_distance + ddar.max_discernible_depth(z1, z2, eps=1.0 / L)),
                   max_depth_01px=float(plane_distance + ddar.max_discernible_depth(z1, z2, eps=0.1 / L)),
                   pixels_per_kappa=tuple(float(x) for x in px_per_kappa))
@@ -195,15 +205,10 @@ def floor_depth_error(setup: Setup, depths, px: float = 1.0) -> np.ndarray:
     camera, mirror, rays = _rays(setup)
     depths = np.asarray(depths, dtype=np.float64)
     out = np.full(depths.shape, np.nan)
-    x0, y0, x1, y1 = centre_roi(setup)
-    _, d, hit = rays(np.array([[(x0 + x1) / 2.0, (y0 + y1) / 2.0]]))
-    if not hit[0]:
+    found = _centre_heading(setup, rays)
+    if found is None:
         return out
-    up = np.asarray(mirror.axis, dtype=np.float64)
-    heading = d[0] - (d[0] @ up) * up
-    if np.linalg.norm(heading) < 1e-9:
-        return out
-    heading /= np.linalg.norm(heading)
+    heading, up = found
     floor = np.asarray(mirror.center, dtype=np.float64) - up * mirror.height / 2.0
     pix, seen = reflection_pixels(camera, mirror, floor + depths[:, None] * heading)
     w, h = camera.resolution
@@ -217,6 +222,87 @@ def floor_depth_error(setup: Setup, depths, px: float = 1.0) -> np.ndarray:
         q = p + t[:, None] * e
         reach.append(np.where(ok & (t > 0), mirror.distance_to_axis(q), np.nan))
     out[seen] = np.abs(reach[1] - reach[0]) / 2.0
+    return out
+
+
+def _centre_heading(setup: Setup, rays):
+    """The unit horizontal direction (square to the mirror's axis) of the reflected ray of the mirror centre's
+    image point, and the axis: (heading, up), or None where that ray misses the mirror or runs along the axis."""
+    x0, y0, x1, y1 = centre_roi(setup)
+    _, d, hit = rays(np.array([[(x0 + x1) / 2.0, (y0 + y1) / 2.0]]))
+    if not hit[0]:
+        return None
+    up = np.asarray(setup.mirror.build().axis, dtype=np.float64)
+    heading = d[0] - (d[0] @ up) * up
+    if np.linalg.norm(heading) < 1e-9:
+        return None
+    return heading / np.linalg.norm(heading), up
+
+
+def _exact_edges(camera, mirror, cube, n: int = 24):
+    """A `depth.estimate.FaceMeasurement` of `cube`'s front face from its true edges, each side's `n` points imaged
+    by the exact reflection (`reflection_pixels`), or None where any of them is not seen in the image. The cube
+    stands upright along the mirror's axis."""
+    from matplotlib.path import Path as Polygon
+    from depth.estimate import FaceMeasurement
+    from raytrace.truth import reflection_pixels
+    _, corners, _ = cube.front_face(mirror)
+    t = np.linspace(0.08, 0.92, n)[:, None]
+    sides, vertical = [], []
+    for i in range(4):
+        a, b = corners[i], corners[(i + 1) % 4]
+        px, ok = reflection_pixels(camera, mirror, a * (1 - t) + b * t)
+        w, h = camera.resolution
+        if not (ok.all() and np.all(np.isfinite(px)) and np.all((px >= 0) & (px <= [w - 1, h - 1]))):
+            return None
+        sides.append(px)
+        vertical.append(abs((b - a) @ mirror.axis) > 0.5 * cube.size)
+    (il, ir), (it, ib) = ([k for k in range(4) if vertical[k] == v] for v in (True, False))
+    il, ir = sorted((il, ir), key=lambda k: sides[k][:, 0].mean())
+    it, ib = sorted((it, ib), key=lambda k: sides[k][:, 1].mean())
+    cpx = reflection_pixels(camera, mirror, corners)[0]
+    order = [int(np.argmin(cpx @ [1.0, 1.0])), int(np.argmin(cpx @ [-1.0, 1.0])), int(np.argmax(cpx @ [1.0, 1.0])),
+             int(np.argmax(cpx @ [-1.0, 1.0]))]  # top-left, top-right, bottom-right, bottom-left
+    outline = np.concatenate(sides)
+    lo, hi = np.floor(outline.min(0)), np.ceil(outline.max(0))
+    gu, gv = np.meshgrid(np.arange(lo[0], hi[0] + 1), np.arange(lo[1], hi[1] + 1))
+    grid = np.column_stack([gu.ravel(), gv.ravel()])
+    return FaceMeasurement((sides[il], sides[ir], sides[it], sides[ib]), cpx[order],
+                           grid[Polygon(outline).contains_points(grid)], 0.0)
+
+
+def setup_depth_error(setup: Setup, depths, std, cube_size: float = 0.04, progress=None) -> dict:
+    """σ (m) of the depth `reconstruct` reads for a cube of `cube_size` facing the mirror's axis at each of `depths`
+    (from the axis) along the azimuth the reflected ray of the mirror centre's image point takes, at the height of
+    the mirror's centre, from the setup's own σ `std` (a `depth.setup_error.SetupStd`, what an `[uncertainty]`
+    table gives): per number of `std` (its components in quadrature) and in total ('total'). The cube's exact edges
+    are read by `exact` through the setup, and each number's move of that reading is `depth.setup_error`'s (the
+    image's own noise left out). NaN where the face is not wholly in the image or `exact` reads none."""
+    from depth.estimate import estimate_face
+    from depth.setup_error import setup_effects
+    from raytrace.scene import Cube
+    camera, mirror, rays = _rays(setup)
+    depths = np.asarray(depths, dtype=np.float64)
+    out = {name: np.full(depths.shape, np.nan) for name, _ in std.items()}
+    out["total"] = np.full(depths.shape, np.nan)
+    found = _centre_heading(setup, rays)
+    if found is None:
+        return out
+    heading, up = found
+    rotation = np.column_stack([np.cross(up, -heading), up, -heading])  # local +z toward the axis, +y up
+    for i, depth in enumerate(depths):
+        cube = Cube(cube_size, np.asarray(mirror.center, dtype=np.float64) + depth * heading, rotation)
+        meas = _exact_edges(camera, mirror, cube)
+        est = None if meas is None else estimate_face(lambda px: rays(px)[:2], meas, "exact", up=up, ray_slopes=True)
+        if est:
+            total = 0.0
+            for name, _ in std.items():
+                var = sum(e[5] ** 2 for n, _, e in setup_effects(est, camera, mirror, std) if n == name)
+                out[name][i] = np.sqrt(var)
+                total += var
+            out["total"][i] = np.sqrt(total)
+        if progress is not None:
+            progress(i + 1, len(depths))
     return out
 
 
@@ -276,6 +362,9 @@ def plot_design(design: Design, path_or_buffer) -> None:
     if design.floor_error is not None and np.isfinite(design.floor_error).any():
         ax[2].plot(design.depths, 100 * design.floor_error / design.depths, color="tab:green",
                    label="standing on the floor (--on-floor), bottom edge ±1 px")
+    if design.setup_error is not None and np.isfinite(design.setup_error["total"]).any():
+        ax[2].plot(design.depths, 100 * design.setup_error["total"] / design.depths, color="tab:purple",
+                   label="from the setup's [uncertainty], exact edges")
     ax[2].set(xlabel="depth (m)", ylabel="expected depth error (%)", title="expected depth error", yscale="log")
     ax[2].legend(fontsize=7)
     fig.suptitle(f"z1 = {design.fit['z1']:.4f} m, z2 = {design.fit['z2']:.4f} m, "

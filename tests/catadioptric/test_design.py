@@ -124,3 +124,66 @@ def test_design_report_is_written_and_a_bad_folder_writes_nothing(capsys, valid_
     plot = tmp_path / "p.png"
     assert main(["design", str(setup), "--depth-range", "0.3", "1.0", "--plot", str(plot), "--report", str(busy)]) == 1
     assert not plot.exists() and sorted(p.name for p in busy.iterdir()) == ["keep.txt"]
+
+
+def test_the_setup_s_depth_error_is_what_whole_fits_through_a_moved_setup_make_of_it():
+    """`setup_depth_error` on a 640×480 setup: the cube's exact edges (`_exact_edges`) read by `exact` through the
+    true setup give its depth to 1e-6; the mirror's radius and the focal lengths moved by ±δ, whole fits of those
+    edges move the depth by what it reports for that number at σ = δ (within 3 %); the camera's place and the
+    mirror's centre give the same share (a setup moved as a whole moves no depth); and a setup taken as exact
+    gives none."""
+    from depth.estimate import estimate_face
+    from depth.setup_error import SetupStd, _moved
+    from raytrace.scene import Cube
+    from raytrace.truth import mirror_rays
+    setup = mirror_setup(0.1, 0.55, resolution=(640, 480), focal=1400.0)
+    camera, mirror = setup.camera.build(), setup.mirror.build()
+    depths = np.array([0.3, 0.5, 0.8])
+    std = SetupStd(focal_px=4.0, mirror_radius=0.0003, camera_position=0.001, mirror_center=0.001)
+    out = design.setup_depth_error(setup, depths, std, cube_size=0.04)
+    assert set(out) == {"focal_px", "mirror_radius", "camera_position", "mirror_center", "total"}
+    assert np.all(np.isfinite(out["total"])) and np.all(np.diff(out["total"]) > 0)
+    assert np.allclose(out["camera_position"], out["mirror_center"], rtol=1e-3)
+    assert np.allclose(out["total"] ** 2, sum(out[k] ** 2 for k in std.__dataclass_fields__ if k in out))
+
+    def read(cam, mir, meas):
+        def rays(px):
+            r = mirror_rays(cam, mir, np.asarray(px, dtype=np.float64))
+            return r.points, r.directions
+        est = estimate_face(rays, meas, "exact", up=mir.axis)
+        assert est, est.reason
+        return float(mir.distance_to_axis(est.center[None])[0])
+    up, heading = np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0])  # the camera looks down −z at the axis
+    for i, depth in enumerate(depths):
+        cube = Cube(0.04, depth * heading, np.column_stack([np.cross(up, -heading), up, -heading]))
+        meas = design._exact_edges(camera, mirror, cube)
+        assert abs(read(camera, mirror, meas) - depth) < 1e-6
+
+        def half_move(name, k, delta):
+            ends = [read(*_moved(camera, mirror, name, k, sgn * delta), meas) for sgn in (1.0, -1.0)]
+            return 0.5 * (ends[0] - ends[1])
+        assert out["mirror_radius"][i] == pytest.approx(abs(half_move("mirror_radius", 0, 0.0003)), rel=0.03)
+        # fx and fy in quadrature: the root sum of squares of both moves
+        assert out["focal_px"][i] == pytest.approx(np.hypot(half_move("focal_px", 0, 4.0), half_move("focal_px", 1, 4.0)),
+                                                   rel=0.03)
+    none = design.setup_depth_error(setup, depths, SetupStd(), cube_size=0.04)
+    assert set(none) == {"total"} and np.all(none["total"] == 0.0)
+
+
+def test_the_design_command_gives_the_setup_s_depth_error_where_the_setup_has_an_uncertainty_table(
+        capsys, valid_setup, write_setup):
+    plain = write_setup(valid_setup)
+    assert main(["design", str(plain), "--depth-range", "0.3", "1.0", "--json"]) == 0
+    assert "expected_depth_error_from_setup" not in json.loads(capsys.readouterr().out)["curve"][0]
+    valid_setup["uncertainty"] = {"focal_px": 2.0, "mirror_radius": 0.0002}
+    unsure = write_setup(valid_setup, "unsure.toml")
+    assert main(["design", str(unsure), "--depth-range", "0.3", "1.0", "--json"]) == 0
+    curve = json.loads(capsys.readouterr().out)["curve"]
+    seen = [p["expected_depth_error_from_setup"] for p in curve if p["expected_depth_error_from_setup"]["total"]]
+    assert seen and set(seen[0]) == {"focal_px", "mirror_radius", "total"}
+    for p in seen:
+        assert p["total"] == pytest.approx(np.hypot(p["focal_px"], p["mirror_radius"]))
+    assert main(["design", str(unsure), "--depth-range", "0.3", "1.0"]) == 0
+    printed = capsys.readouterr().out
+    assert "setup σ (mm)" in printed and "depth σ (mm) per [uncertainty] number" in printed
+    assert "mirror_radius" in printed and "focal_px" in printed
