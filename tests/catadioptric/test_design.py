@@ -164,8 +164,8 @@ def test_the_setup_s_depth_error_is_what_whole_fits_through_a_moved_setup_make_o
             return 0.5 * (ends[0] - ends[1])
         assert out["mirror_radius"][i] == pytest.approx(abs(half_move("mirror_radius", 0, 0.0003)), rel=0.03)
         # fx and fy in quadrature: the root sum of squares of both moves
-        assert out["focal_px"][i] == pytest.approx(np.hypot(half_move("focal_px", 0, 4.0), half_move("focal_px", 1, 4.0)),
-                                                   rel=0.03)
+        both = np.hypot(half_move("focal_px", 0, 4.0), half_move("focal_px", 1, 4.0))
+        assert out["focal_px"][i] == pytest.approx(both, rel=0.03)
     none = design.setup_depth_error(setup, depths, SetupStd(), cube_size=0.04)
     assert set(none) == {"total"} and np.all(none["total"] == 0.0)
 
