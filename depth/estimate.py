@@ -1615,19 +1615,22 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     jac_best = derived_jac(x_best)
     first_order = propagated(x_best, cov, jac_best)
 
+    def reading_jacobian(cols):
+        """At the reading's pose: its residuals (R,), their forward-difference Jacobian over the parameters `cols`
+        (R, len(cols)), and the square root of the soft-l1 loss's curvature of each (R,)."""
+        h = (x_best[cols] + _FD_STEP * np.maximum(1.0, np.abs(x_best[cols]))) - x_best[cols]
+        poses = np.repeat(x_best[None], len(cols) + 1, axis=0)
+        poses[np.arange(1, len(cols) + 1), cols] += h
+        r = resids(poses)
+        return r[0], ((r[1:] - r[0]) / h[:, None]).T, (1.0 + r[0] ** 2) ** -0.75
+
     def size_slope():
         """At a known edge length, how this reading's centre and z move per metre of it: (3,) and a scalar. The
         pose is re-solved to first order as the size moves (the implicit function theorem on the soft-l1 loss's
         normal equations, each residual weighted by its curvature (1 + r²)^(-3/2), at the reading's pixel scales
         and faces), its parameters those the reading was fitted over (upright, or tilted)."""
         free = tilted if upright_reading is not None else upright
-        cols = np.r_[free, 6]
-        h = (x_best[cols] + _FD_STEP * np.maximum(1.0, np.abs(x_best[cols]))) - x_best[cols]
-        poses = np.repeat(x_best[None], len(cols) + 1, axis=0)
-        poses[np.arange(1, len(cols) + 1), cols] += h
-        r = resids(poses)
-        jac = ((r[1:] - r[0]) / h[:, None]).T
-        w = (1.0 + r[0] ** 2) ** -0.75  # the square root of the curvature
+        _, jac, w = reading_jacobian(np.r_[free, 6])
         dx = np.zeros(7)
         dx[free] = -np.linalg.lstsq(w[:, None] * jac[:, :-1], w * jac[:, -1], rcond=None)[0]
         dx[6] = 1.0  # per unit of log size: per metre, divided by the size
@@ -1645,14 +1648,9 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         vertical `up` about each world axis (the frame an upright face turns in turned with it; a tilted
         reading's free tilt takes it up)."""
         free = tilted if upright_reading is not None else upright
-        h = (x_best[free] + _FD_STEP * np.maximum(1.0, np.abs(x_best[free]))) - x_best[free]
-        poses = np.repeat(x_best[None], len(free) + 1, axis=0)
-        poses[np.arange(1, len(free) + 1), free] += h
-        r = resids(poses)
-        jac = ((r[1:] - r[0]) / h[:, None]).T
-        w = (1.0 + r[0] ** 2) ** -0.75  # the square root of the curvature
+        r0, jac, w = reading_jacobian(free)
         solve = -np.linalg.pinv(w[:, None] * jac) * w  # (F, R): the pose's move per residual's move
-        grad = np.empty((r.shape[1], 6))  # each residual's change per unit of its ray's six coordinates
+        grad = np.empty((len(r0), 6))  # each residual's change per unit of its ray's six coordinates
         for k in range(6):
             step = np.zeros(3)
             step[k % 3] = _RAY_STEP
@@ -1663,7 +1661,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         moves = solve[:, :n, None] * grad[None, :n]  # (F, N, 6)
         if len(hid_idx):
             np.add.at(moves, (slice(None), hid_idx), solve[:, n:, None] * grad[None, n:])
-        turned = np.empty((r.shape[1], 3))  # each residual's change per radian of the frame's turn
+        turned = np.empty((len(r0), 3))  # each residual's change per radian of the frame's turn
         direct = np.empty((5, 3))  # the centre's (behind the face, along its normal) at the same pose
         for k in range(3):
             spin = np.zeros(3)
