@@ -51,16 +51,13 @@ def variant_images(renderer: str, sc, base):
 
 
 def run(quick: bool = False, log=print) -> dict:
-    from bench.bench_reconstruct import _RayMapMemo, cases, mitsuba_image, our_render, score
+    from bench.bench_reconstruct import _RayMapMemo, cases, mitsuba_image, our_render, score, with_truth
     from depth.reconstruct import reconstruct
-    from raytrace.truth import cube_truth
     records = []
     todo = [(r, sc) for r, sc in cases(quick) if sc.same_size]
     t_start = time.perf_counter()
-    for n, (renderer, sc) in enumerate(todo):
+    for n, renderer, sc, camera, mirror, truth in with_truth(todo):
         setup = sc.setup
-        camera, mirror = setup.camera.build(), setup.mirror.build()
-        truth = [cube_truth(camera, mirror, c.build()) for c in setup.objects]
         sizes = {round(t["size"], 12) for t in truth}
         assert len(sizes) == 1, f"{sc.name}: cubes of one size expected, got {sorted(sizes)}"
         base = our_render(setup) if renderer == "ours" else mitsuba_image(setup)
@@ -104,15 +101,16 @@ def reading_table(records: list, readings, summary, log=print, extra: tuple = ()
     error median / max / over 3 %, depth within 1 / 2 / 3 σ, then each of `extra`'s (header, cell of a summary)
     columns); returns {reading: its summary}."""
     out = {}
-    log(f"{'reading':20s} {'found':>9s} {'FP':>3s} | {'centre med':>10s} {'max':>8s} {'> 3 %':>5s} | "
+    width = max(20, *(len(reading) for reading in readings))
+    log(f"{'reading':{width}s} {'found':>9s} {'FP':>3s} | {'centre med':>10s} {'max':>8s} {'> 3 %':>5s} | "
         + " | ".join(["depth within 1 / 2 / 3 σ", *(header for header, _ in extra)]))
     for reading in readings:
         s = out[reading] = summary(records, reading)
         if s["centre_median"] is None:
-            log(f"{reading:20s} {s['found']:>4d}/{s['cubes']:<4d} {s['false_positives']:>3d} | none found")
+            log(f"{reading:{width}s} {s['found']:>4d}/{s['cubes']:<4d} {s['false_positives']:>3d} | none found")
             continue
         within = " / ".join(f"{100 * v:.0f}" for v in s["depth_within_1_2_3_sigma"])
-        log(f"{reading:20s} {s['found']:>4d}/{s['cubes']:<4d} {s['false_positives']:>3d} | "
+        log(f"{reading:{width}s} {s['found']:>4d}/{s['cubes']:<4d} {s['false_positives']:>3d} | "
             f"{100 * s['centre_median']:>9.2f}% {100 * s['centre_max']:>7.2f}% {s['over_3pct']:>5d} | "
             + " | ".join([f"{within} %", *(cell(s) for _, cell in extra)]))
     return out

@@ -70,16 +70,13 @@ def _kwargs(reading: str, floor_height: float, rng) -> dict:
 
 def run(quick: bool = False, log=print) -> dict:
     from bench.bench_known_size import variant_images
-    from bench.bench_reconstruct import _RayMapMemo, our_render, score
+    from bench.bench_reconstruct import _RayMapMemo, our_render, score, with_truth
     from depth.reconstruct import reconstruct
-    from raytrace.truth import cube_truth
     records = []
     todo = cases(quick)
     t_start = time.perf_counter()
-    for n, (renderer, sc) in enumerate(todo):
+    for n, renderer, sc, camera, mirror, truth in with_truth(todo):
         setup = sc.setup
-        camera, mirror = setup.camera.build(), setup.mirror.build()
-        truth = [cube_truth(camera, mirror, c.build()) for c in setup.objects]
         floor = -mirror.height / 2.0
         lows = [float((np.asarray(t["center"]) - mirror.center) @ mirror.axis) - t["size"] / 2.0 for t in truth]
         assert np.allclose(lows, floor, atol=1e-5), f"{sc.name}: cubes off the floor by {np.subtract(lows, floor)}"

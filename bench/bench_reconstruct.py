@@ -234,6 +234,15 @@ class _RayMapMemo:
 # ---------------------------------------------------------------------------------------------
 # Running
 # ---------------------------------------------------------------------------------------------
+def with_truth(todo):
+    """Per case (renderer, scene) of `todo`: (its index, renderer, scene, camera, mirror, the truth of its cubes
+    (`raytrace.truth.cube_truth`))."""
+    from raytrace.truth import cube_truth
+    for n, (renderer, sc) in enumerate(todo):
+        camera, mirror = sc.setup.camera.build(), sc.setup.mirror.build()
+        yield n, renderer, sc, camera, mirror, [cube_truth(camera, mirror, c.build()) for c in sc.setup.objects]
+
+
 def cases(quick: bool) -> list:
     ours = make_scenes(N_SCENES, SEED)
     mits = make_scenes(N_MITSUBA, MITSUBA_SEED)

@@ -48,16 +48,13 @@ def drawn(camera, mirror, std, rng):
 
 
 def run(quick: bool = False, log=print) -> dict:
-    from bench.bench_reconstruct import _RayMapMemo, cases, mitsuba_image, our_render, score
+    from bench.bench_reconstruct import _RayMapMemo, cases, mitsuba_image, our_render, score, with_truth
     from depth.reconstruct import reconstruct
-    from raytrace.truth import cube_truth
     records, times = [], []
     todo = cases(quick)
     t_start = time.perf_counter()
-    for n, (renderer, sc) in enumerate(todo):
+    for n, renderer, sc, camera, mirror, truth in with_truth(todo):
         setup = sc.setup
-        camera, mirror = setup.camera.build(), setup.mirror.build()
-        truth = [cube_truth(camera, mirror, c.build()) for c in setup.objects]
         img = our_render(setup) if renderer == "ours" else mitsuba_image(setup)
         if img is None:
             log(f"  {sc.name} (mitsuba): Mitsuba 3 not installed (pip install -e '.[bench]'), skipped")
