@@ -124,7 +124,7 @@ def _run_reconstruction(image_path, setup_path, method, cube_size, progress, blu
     from depth.errors import DepthError
     if on_floor:
         floor_height = -setup.mirror.height / 2.0
-    carried = setup.uncertainty is not None and method == "exact" and floor_height is None
+    carried = setup.uncertainty is not None and method == "exact"
     try:
         rec = reconstruct(image, setup.camera.build(), setup.mirror.build(), method=method,
                           cube_size=cube_size, progress=progress, compressed=is_jpeg(image_path),
@@ -153,12 +153,11 @@ def result_dict(image_path, setup_path, rec) -> dict:
 
 def setup_uncertainty_note(setup, result: dict, setup_path) -> str | None:
     """The line saying that the setup's `[uncertainty]` was not carried into the σ (with a method other than
-    `exact`, or with a floor), else None."""
+    `exact`), else None."""
     if setup.uncertainty is None or "setup_uncertainty" in result:
         return None
-    why = "with a floor" if "floor" in result else f"not method {result['method']}'s"
-    return (f"note: {setup_path}'s [uncertainty] is carried through method exact's fit alone ({why}): the ±σ above "
-            "count the image's noise alone")
+    return (f"note: {setup_path}'s [uncertainty] is carried through method exact's fit alone (not method "
+            f"{result['method']}'s): the ±σ above count the image's noise alone")
 
 
 OVERLAY_FACE = (255, 255, 0)

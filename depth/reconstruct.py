@@ -578,8 +578,9 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         Default: the floor's height taken as exact.
     setup_std : depth.setup_error.SetupStd, optional — the σ of the setup's own numbers (the camera's place,
         turn, focal lengths and principal point; the mirror's radius, place and axis), carried into each cube's σ
-        through `exact`'s fit (method "exact" alone, and not with `floor_height`): `depth.setup_error`. Each
-        estimate's `setup_std` keeps that share apart. Default: the setup taken as exact.
+        through `exact`'s fit (method "exact" alone; with `floor_height`, the floor placed along the mirror's axis
+        moves with the mirror, and each size with it): `depth.setup_error`. Each estimate's `setup_std` keeps that
+        share apart. Default: the setup taken as exact.
     """
     from depth.measure import BLUR_DOMAINS, checked_images
 
@@ -601,9 +602,8 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         from depth.setup_error import SetupStd
         if not isinstance(setup_std, SetupStd):
             raise DepthError(f"setup_std: expected a depth.setup_error.SetupStd, got {type(setup_std).__name__}")
-        if method != "exact" or floor is not None:
-            raise DepthError("setup_std: the setup's σ is carried through method exact's fit alone"
-                             + (", not with floor_height" if floor is not None else f", not {method}'s"))
+        if method != "exact":
+            raise DepthError(f"setup_std: the setup's σ is carried through method exact's fit alone, not {method}'s")
         if not all(hasattr(mirror, key) for key in ("radius", "center", "axis")):
             raise DepthError("setup_std: carried through a cylindrical mirror's radius, centre and axis; this mirror "
                              "has none")
@@ -1140,7 +1140,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         kept = [i for i, r in enumerate(results) if not r[2]]
         point, std = floor
         fits = refits(lambda j: estimate_face_on_floor(rays, attached(results[kept[j]][4]), point, up, std,
-                                                       alone=results[kept[j]][0]),
+                                                       alone=results[kept[j]][0], ray_slopes=slopes),
                       [results[i][4] for i in kept])
         out = list(results)
         for i, est in zip(kept, fits):

@@ -114,10 +114,30 @@ def setup_effects(est: CubeEstimate, camera, mirror, std: SetupStd) -> list:
             move = np.einsum("fnc,nc->f", slopes, delta)
             if name == "mirror_axis_deg":  # the scene's vertical, the axis, turns too: an upright face with it
                 move += up_slopes @ (np.deg2rad(sigma) * mirror.frame[k])
+            if est.on_floor is not None:
+                move += _floor_move(est, mirror, plus[1], minus[1], move)
             depths = [m.distance_to_axis((est.center + sgn * move[:3])[None])[0]
                       for sgn, (_, m) in ((1.0, plus), (-1.0, minus))]
             out.append((name, k, np.r_[move, 0.5 * (depths[0] - depths[1])]))
     return out
+
+
+def _floor_move(est: CubeEstimate, mirror, plus, minus, move) -> np.ndarray:
+    """A cube read standing on the floor (`estimate_face_on_floor`): the further move of its centre (3), size and z
+    (5,) as a setup number moves the reading at its size by `move` (5+) and the mirror from `mirror` to `plus` and
+    `minus` (±1 σ). The floor stays where it is along the mirror's axis from the mirror's centre (as `reconstruct`'s
+    `floor_height` places it) and square to the axis, so it moves and turns with the mirror; the size moves until
+    the cube's bottom is on it again: by −(the bottom's height over the floor's move) / (its rate per metre of
+    size), and the pose with it (`size_slope`)."""
+    point, up, rate = est.on_floor
+    sign = 1.0 if up @ mirror.axis >= 0 else -1.0
+    height = (point - mirror.center) @ mirror.axis
+    ends = [(m.center + height * m.axis, sign * m.axis) for m in (plus, minus)]
+    d_point, d_up = 0.5 * (ends[0][0] - ends[1][0]), 0.5 * (ends[0][1] - ends[1][1])
+    d_gap = up @ move[:3] + (est.center - point) @ d_up - up @ d_point  # at the reading's size
+    d_size = -d_gap / rate
+    slope = est.size_slope
+    return np.r_[d_size * np.asarray(slope["center"]), d_size, d_size * slope["z"]]
 
 
 def with_setup_std(est: CubeEstimate, camera, mirror, std: SetupStd) -> CubeEstimate:

@@ -189,6 +189,42 @@ def test_cubes_on_the_floor_are_read_to_their_depth_with_the_floor_s_sigma(floor
         assert abs(wide["depth"] - t["depth"]) < 2.0 * wide["uncertainty"]["depth"]
 
 
+def test_cubes_on_the_floor_carry_the_setup_s_uncertainty_as_whole_runs_make_of_it(floor_scene, capsys):
+    """`--on-floor` with a setup whose `[uncertainty]` says its camera's place is known to 1 mm: the readings are
+    the same and each depth's σ is the image's own and the setup's share in quadrature; that share is the root sum
+    of squares of each depth's move in whole `--on-floor` runs with the camera moved 1 mm along x, y and z in turn
+    (its look_at with it), within 10 %."""
+    import tomli_w, tomllib
+    img = str(floor_scene / "floor.png")
+    setup = tomllib.loads((floor_scene / "floor.toml").read_text())
+    setup["uncertainty"] = {"camera_position": 0.001}
+    (floor_scene / "floor_unsure.toml").write_text(tomli_w.dumps(setup))
+    plain, unsure = floor_scene / "floor_plain.json", floor_scene / "floor_unsure.json"
+    assert main(["reconstruct", img, "--on-floor", "-o", str(plain)]) == 0
+    assert main(["reconstruct", img, "--on-floor", "--setup", str(floor_scene / "floor_unsure.toml"),
+                 "-o", str(unsure)]) == 0
+    capsys.readouterr()
+    moves = []
+    for k in range(3):
+        moved = tomllib.loads((floor_scene / "floor.toml").read_text())
+        moved["camera"]["position"][k] += 0.001
+        moved["camera"]["look_at"][k] += 0.001
+        (floor_scene / f"floor_moved{k}.toml").write_text(tomli_w.dumps(moved))
+        out = floor_scene / f"floor_moved{k}.json"
+        assert main(["reconstruct", img, "--on-floor", "--setup", str(floor_scene / f"floor_moved{k}.toml"),
+                     "-o", str(out)]) == 0
+        moves.append([c["depth"] for c in json.loads(out.read_text())["cubes"]])
+    a, b = (json.loads(p.read_text()) for p in (plain, unsure))
+    assert b["setup_uncertainty"] == {"camera_position": 0.001} and len(a["cubes"]) == len(b["cubes"]) == 3
+    assert all(len(m) == 3 for m in moves)
+    for i, (x, y) in enumerate(zip(a["cubes"], b["cubes"])):
+        assert y["center"] == x["center"] and y["size"] == x["size"]
+        share = y["uncertainty_from_setup"]
+        assert share["depth"] == pytest.approx(np.sqrt(sum((m[i] - x["depth"]) ** 2 for m in moves)), rel=0.1)
+        assert y["uncertainty"]["depth"] == pytest.approx(np.hypot(x["uncertainty"]["depth"], share["depth"]))
+        assert share["size"] > 0  # (the floor's height over the camera moves each size)
+
+
 def test_the_command_says_when_the_cubes_may_stand_on_the_floor(scene, floor_scene, capsys):
     """Without `--on-floor`, the cubes standing on the floor are read by `exact` with their bottoms within 2 σ of
     it, and the command says that `--on-floor` would fix their scale; the cubes floating 0.245 m over it are not."""

@@ -162,16 +162,45 @@ def test_each_number_moves_what_its_name_says(rig):
 
 
 def test_reconstruct_refuses_a_setup_sigma_it_cannot_carry(rig):
-    """`reconstruct(setup_std=)`: carried through method exact's fit alone, not with a floor, and only a
-    `SetupStd`: one-line errors before any work."""
+    """`reconstruct(setup_std=)`: carried through method exact's fit alone, and only a `SetupStd`: one-line errors
+    before any work."""
     from depth.reconstruct import reconstruct
     image = np.zeros((600, 800, 3), np.uint8)
     std = SetupStd(focal_px=1.0)
     for kwargs, message in ((dict(method="ddar"), "not ddar's"), (dict(method="exact_shape_prior"),
-                                                                    "not exact_shape_prior's"),
-                            (dict(floor_height=-0.245), "not with floor_height")):
+                                                                    "not exact_shape_prior's")):
         with pytest.raises(DepthError, match=f"setup_std: the setup's σ is carried through method exact's fit alone, "
                                              f"{message}"):
             reconstruct(image, rig.camera, rig.mirror, setup_std=std, **kwargs)
     with pytest.raises(DepthError, match="setup_std: expected a depth.setup_error.SetupStd, got dict"):
         reconstruct(image, rig.camera, rig.mirror, setup_std={"focal_px": 1.0})
+
+
+@pytest.mark.parametrize("yaw", [0.0, 15.0])
+def test_a_cube_on_the_floor_moves_with_the_setup_and_the_floor_with_the_mirror(rig, yaw):
+    """`estimate_face_on_floor`'s reading: the floor lies at the mirror's lower end (as `--on-floor` places it),
+    square to its axis, so it moves and turns with the mirror. A setup off by ±δ in one number reads the true
+    setup's exact edges (a whole on-floor fit: Newton on the size through the moved setup's rays and floor); half
+    the difference of the two readings is what `setup_effects` predicts from the true setup's reading: centre,
+    size and depth within 3 % of the move (and 2 µm). The size moves now: the floor fixes it."""
+    from depth.estimate import estimate_face_on_floor
+    floor_at = -rig.mirror.height / 2.0
+    cube = rig.cube(0.55, 15.0, height=floor_at + 0.02, yaw_deg=yaw)
+    meas = rig.measure(cube, n=24)
+
+    def on_floor(camera, mirror, slopes=False):
+        est = estimate_face_on_floor(rays_of(camera, mirror), meas, mirror.center + floor_at * mirror.axis,
+                                     mirror.axis, ray_slopes=slopes)
+        assert est, est.reason
+        return est
+    est = on_floor(rig.camera, rig.mirror, slopes=True)
+    assert abs(depth_of(est, rig.mirror) - rig.depth(cube)) < 1e-6 and est.on_floor is not None
+    for name, k, delta in CASES + [("mirror_center", 1, 0.002)]:  # (the mirror, and the floor, up its axis)
+        (predicted,) = [e for n, kk, e in setup_effects(est, rig.camera, rig.mirror, SetupStd(**{name: delta}))
+                        if kk == k]
+        ends = [_moved(rig.camera, rig.mirror, name, k, sgn * delta) for sgn in (1.0, -1.0)]
+        fits = [on_floor(*end) for end in ends]
+        actual = np.r_[0.5 * (fits[0].center - fits[1].center), 0.5 * (fits[0].size - fits[1].size),
+                       0.5 * (depth_of(fits[0], ends[0][1]) - depth_of(fits[1], ends[1][1]))]
+        wanted = np.r_[predicted[:4], predicted[5]]
+        assert np.all(np.abs(wanted - actual) <= 0.03 * np.abs(actual) + 2e-6), (name, k, wanted, actual)
