@@ -1,7 +1,8 @@
 """A setup measured off: how far `exact`'s readings move, and whether the setup's σ (`[uncertainty]`) covers it.
 
-On the reconstruct bench's scenes (`bench_reconstruct.cases`: our clean renders and the Mitsuba renders), each
-image is read through its true setup, then through `DRAWS` setups drawn off it by N(0, σ) in every number of
+On the reconstruct bench's scenes (`bench_reconstruct.cases`: our clean renders and the Mitsuba renders), and on
+`bench_on_floor`'s (clean renders of ours and its Mitsuba floor scenes, read `--on-floor`), each image is read
+through its true setup, then through `DRAWS` setups drawn off it by N(0, σ) in every number of
 `SIGMA` (the camera's place, turn, focal lengths and principal point; the mirror's radius, place and axis;
 seeded per image and draw), once without the setup's σ and once with it (`reconstruct(setup_std=)`). The truth
 is the true setup's: a cube's depth is its distance from the true axis, the reading's from the drawn axis.
@@ -23,6 +24,9 @@ import time
 import numpy as np
 
 READINGS = ("exact, true setup", "exact, setup drawn off", "exact, setup drawn off, σ carried")
+FLOOR_READINGS = ("on the floor, true setup", "on the floor, setup drawn off", "on the floor, drawn off, σ carried")
+"""The same on `bench_on_floor`'s scenes (clean renders of ours and the Mitsuba floor scenes), `--on-floor`: the
+floor at the (drawn) mirror's lower end."""
 DRAWS = 3
 """Setups drawn per image."""
 SIGMA = {"camera_position": 0.001, "camera_rotation_deg": 0.05, "focal_px": 0.002, "principal_px": 1.0,
@@ -48,19 +52,31 @@ def drawn(camera, mirror, std, rng):
 
 
 def run(quick: bool = False, log=print) -> dict:
+    from bench import bench_on_floor
     from bench.bench_reconstruct import _RayMapMemo, cases, mitsuba_image, our_render, score, with_truth
     from depth.reconstruct import reconstruct
     records, times = [], []
-    todo = cases(quick)
+    floating, standing = cases(quick), bench_on_floor.cases(quick)
+    todo = [(r, sc, False) for r, sc in floating] + [(r, sc, True) for r, sc in standing]
     t_start = time.perf_counter()
-    for n, renderer, sc, camera, mirror, truth in with_truth(todo):
+    for n, renderer, sc, camera, mirror, truth in with_truth([(r, sc) for r, sc, _ in todo]):
         setup = sc.setup
-        img = our_render(setup) if renderer == "ours" else mitsuba_image(setup)
+        on_floor = todo[n][2]
+        if not on_floor:
+            img = our_render(setup) if renderer == "ours" else mitsuba_image(setup)
+        else:
+            img = our_render(setup) if renderer == "ours" else bench_on_floor.mitsuba_floor_render(
+                setup, sum(1 for r, _, floor in todo[:n] if r == renderer and floor))
         if img is None:
             log(f"  {sc.name} (mitsuba): Mitsuba 3 not installed (pip install -e '.[bench]'), skipped")
             continue
         std = setup_std(camera)
         rng = np.random.default_rng([int(sc.key[:8], 16), 7])
+        readings = FLOOR_READINGS if on_floor else READINGS
+
+        def read(cam, mir, **kw):
+            """`reconstruct` through (cam, mir); on the floor at the mirror's lower end for a standing scene."""
+            return reconstruct(img, cam, mir, **(dict(floor_height=-mir.height / 2.0) if on_floor else {}), **kw)
 
         def scored(reading, rec, draw):
             s = score([c.to_dict() for c in rec.cubes], truth, [sc.kind] * len(truth), list(sc.turn_deg))
@@ -70,22 +86,23 @@ def run(quick: bool = False, log=print) -> dict:
             records.append({"scene": sc.name, "renderer": renderer, "reading": reading, "draw": draw,
                             "false_positives": s["false_positives"], "cubes": s["cubes"], "shares": shares})
         with _RayMapMemo():
-            scored(READINGS[0], reconstruct(img, camera, mirror), None)
+            scored(readings[0], read(camera, mirror), None)
         for draw in range(DRAWS):
             cam, mir = drawn(camera, mirror, std, rng)
             # each traces its own ray map (no memo), the first of the two taking turns
             recs, seconds = {}, {}
             for carry in ((False, True) if draw % 2 == 0 else (True, False)):
                 t0 = time.perf_counter()
-                recs[carry] = reconstruct(img, cam, mir, setup_std=std if carry else None)
+                recs[carry] = read(cam, mir, setup_std=std if carry else None)
                 seconds[carry] = time.perf_counter() - t0
             plain, carried = recs[False], recs[True]
             times.append({"scene": sc.name, "renderer": renderer, "draw": draw, "plain_s": seconds[False],
-                          "carried_s": seconds[True], "resolution": list(setup.camera.resolution)})
-            scored(READINGS[1], plain, draw)
-            scored(READINGS[2], carried, draw)
-        log(f"  [{n + 1}/{len(todo)}] {sc.name} {renderer:7s} {len(truth)} cubes, elapsed "
-            f"{time.perf_counter() - t_start:.0f} s")
+                          "carried_s": seconds[True], "resolution": list(setup.camera.resolution),
+                          "on_floor": on_floor})
+            scored(readings[1], plain, draw)
+            scored(readings[2], carried, draw)
+        log(f"  [{n + 1}/{len(todo)}] {sc.name} {renderer:7s}{' standing' if on_floor else ''} {len(truth)} cubes, "
+            f"elapsed {time.perf_counter() - t_start:.0f} s")
     return {"records": records, "times": times, "sigma": SIGMA, "draws": DRAWS, "quick": quick,
             "seconds_total": time.perf_counter() - t_start}
 
@@ -100,14 +117,16 @@ def summarize(records: list, reading: str) -> dict:
 
 def report(result: dict, log=print) -> dict:
     from bench.bench_known_size import reading_table
-    out = reading_table(result["records"], READINGS, summarize, log, extra=(
+    out = reading_table(result["records"], READINGS + FLOOR_READINGS, summarize, log, extra=(
         ("setup σ / image σ (median)", lambda s: "—" if s["setup_share_median"] is None
          else f"{s['setup_share_median']:.2f}"),))
-    ratios = np.array([t["carried_s"] / t["plain_s"] for t in result["times"]])
-    if len(ratios):
-        log(f"time with the setup's σ over without (same drawn setup): median {np.median(ratios):.3f}, "
-            f"max {ratios.max():.3f} over {len(ratios)} readings")
-        out["time_ratio"] = {"median": float(np.median(ratios)), "max": float(ratios.max())}
+    for floor in (False, True):
+        ratios = np.array([t["carried_s"] / t["plain_s"] for t in result["times"] if t.get("on_floor", False) == floor])
+        if len(ratios):
+            log(f"time with the setup's σ over without (same drawn setup{', on the floor' if floor else ''}): median "
+                f"{np.median(ratios):.3f}, max {ratios.max():.3f} over {len(ratios)} readings")
+            out["time_ratio" + ("_on_floor" if floor else "")] = {"median": float(np.median(ratios)),
+                                                                   "max": float(ratios.max())}
     return out
 
 

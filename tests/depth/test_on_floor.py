@@ -1,6 +1,8 @@
 """`exact` for cubes standing on a known floor (`depth.estimate.estimate_face_on_floor`), on the rig's exact
 reflections of true cube edges (no renderer): exact recovery, the floor's own σ, and the refusals."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
@@ -102,6 +104,31 @@ def test_a_cube_off_the_floor_is_refused(rig, lift):
     cube = standing(rig, 0.45, 15.0, lift=lift)
     est = estimate_face_on_floor(rig.rays, rig.measure(cube, n=24, noise_px=0.05, seed=2), floor_of(rig), UP)
     assert not est and "it does not stand on that floor" in est.reason, est
+
+
+def test_a_reading_whose_gap_jumps_across_the_floor_settles_at_the_jump_with_both_readings_in_its_sigma(
+        rig, monkeypatch):
+    """Where `exact`'s reading changes with the size (its fit at a known size above 39.9 mm put 1.5 mm lower here),
+    the bottom's height over the floor jumps across it: no size stands the cube on the floor, and Newton's steps
+    cycle either side of the jump (refused after 8 fits without a safeguard). The steps are bracketed and halved:
+    the size lands within 0.2 % of the jump, and the centre's σ covers the other side's reading too."""
+    import depth.estimate as de
+    cube = standing(rig, 0.6, 10.0, size=0.04)
+    meas = rig.measure(cube, n=24)
+    jump, real = 0.0399, de.estimate_face
+
+    def reading(*args, **kwargs):
+        est = real(*args, **kwargs)
+        if est and kwargs.get("cube_size") is not None and kwargs["cube_size"] > jump:
+            est = replace(est, center=est.center - 0.0015 * UP)
+        return est
+    plain = estimate_face_on_floor(rig.rays, meas, floor_of(rig), UP)
+    monkeypatch.setattr(de, "estimate_face", reading)
+    est = estimate_face_on_floor(rig.rays, meas, floor_of(rig), UP)
+    assert est, est.reason
+    assert est.size == pytest.approx(jump, rel=2e-3)
+    # the other side's reading lies 1.5 mm lower: an even mixture of the two adds half of that to the centre's σ
+    assert est.std["center"] == pytest.approx(np.hypot(plain.std["center"], 0.00075), rel=0.1)
 
 
 def test_a_floor_the_camera_looks_along_fixes_no_size(rig):
