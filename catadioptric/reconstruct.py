@@ -205,7 +205,8 @@ def print_table(console, result: dict, truth: dict | None = None) -> None:
                                          + (f" (±{floor['std']:.4f})" if floor["std"] else ""))
     carried = ", ±σ with the setup's uncertainty" if "setup_uncertainty" in result else ""
     t = Table(title=f"{result['image']}: {len(result['cubes'])} cube(s), method {result['method']}{on_floor}{carried}")
-    cols = ["#", "depth (m)", "±σ (m)", "size (m)", "centre (m)", "AR r_i", "misfit"]
+    cols = ["#", "depth (m)", "±σ (m)", *(["setup σ"] if carried else []), "size (m)", "centre (m)", "AR r_i",
+            "misfit"]
     if truth:
         cols += ["true depth", "centre err", "size err"]
     for c in cols:
@@ -215,6 +216,7 @@ def print_table(console, result: dict, truth: dict | None = None) -> None:
     flags = [edge_misfit_flagged(m) for m in misfits]
     for i, (c, tc, misfit, flagged) in enumerate(zip(result["cubes"], matches, misfits, flags)):
         row = [str(i), f"{c['depth']:.4f}", f"{c['uncertainty']['depth']:.4f}",
+               *([f"{c['uncertainty_from_setup']['depth']:.4f}"] if carried else []),
                f"{c['size']:.4f}" + (" *" if c.get("size_set_aside") else ""),
                "[" + ", ".join(f"{x:+.3f}" for x in c["center"]) + "]", f"{c['aspect_ratio']:.3f}",
                "—" if misfit is None else f"{misfit:.2f}" + (" !" if flagged else "")]
@@ -227,6 +229,8 @@ def print_table(console, result: dict, truth: dict | None = None) -> None:
         t.add_row(*row)
     if any(m is not None for m in misfits):
         t.caption = "misfit: rms distance (px) of the face's edge points from the fitted square"
+    if carried:
+        t.caption = (t.caption + "; " if t.caption else "") + "setup σ: the share (m) of ±σ the setup's uncertainty gives"
     console.print(t)
     if any(flags):
         console.print(f"! the face's edges miss the fitted square by more than {EDGE_MISFIT_WARN_PX} px rms: "

@@ -99,7 +99,8 @@ def test_the_setup_s_uncertainty_table_widens_each_sigma_by_its_share(scene, cap
     capsys.readouterr()
     assert main(["reconstruct", str(scene / "mirror.png"), "--setup", str(scene / "unsure.toml"),
                  "-o", str(unsure)]) == 0
-    assert "±σ with the setup's uncertainty" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "±σ with the setup's uncertainty" in printed and "setup σ: the share (m) of ±σ" in printed
     a, b = (json.loads(p.read_text()) for p in (plain, unsure))
     assert "setup_uncertainty" not in a and b["setup_uncertainty"] == setup["uncertainty"]
     moves = []
