@@ -13,7 +13,8 @@ image's own. Then the time of a reading with the setup's σ over the same readin
 setup, the same process, each tracing its own ray map, the first of the two taking turns; median and max).
 
 Run: `python -m bench setup_error [--quick]`; renders are cached in bench/out/renders/ (as `bench_reconstruct`'s),
-the result goes to bench/out/setup_error.json.
+the result goes to bench/out/setup_error.json. On the scenes of cubes of one size, two more readings through the same
+drawn setups: `exact_shape_prior`, and `exact` at the true size.
 """
 
 from __future__ import annotations
@@ -27,6 +28,10 @@ READINGS = ("exact, true setup", "exact, setup drawn off", "exact, setup drawn o
 FLOOR_READINGS = ("on the floor, true setup", "on the floor, setup drawn off", "on the floor, drawn off, σ carried")
 """The same on `bench_on_floor`'s scenes (clean renders of ours and the Mitsuba floor scenes), `--on-floor`: the
 floor at the (drawn) mirror's lower end."""
+ONE_SIZE_READINGS = ("one size, true setup", "one size, setup drawn off", "one size, drawn off, σ carried")
+"""The same on the reconstruct bench's scenes of one size, `exact_shape_prior` (through the same drawn setups)."""
+KNOWN_SIZE_READINGS = ("size known, true setup", "size known, drawn off", "size known, drawn off, σ carried")
+"""The same on those scenes, `exact` at the true size (`cube_size`)."""
 DRAWS = 3
 """Setups drawn per image."""
 SIGMA = {"camera_position": 0.001, "camera_rotation_deg": 0.05, "focal_px": 0.002, "principal_px": 1.0,
@@ -73,6 +78,9 @@ def run(quick: bool = False, log=print) -> dict:
         std = setup_std(camera)
         rng = np.random.default_rng([int(sc.key[:8], 16), 7])
         readings = FLOOR_READINGS if on_floor else READINGS
+        # the other readings of a scene of cubes of one size: (their names, `reconstruct`'s arguments)
+        others = [] if on_floor or not sc.same_size else [(ONE_SIZE_READINGS, dict(method="exact_shape_prior")),
+                                                          (KNOWN_SIZE_READINGS, dict(cube_size=truth[0]["size"]))]
 
         def read(cam, mir, **kw):
             """`reconstruct` through (cam, mir); on the floor at the mirror's lower end for a standing scene."""
@@ -87,6 +95,8 @@ def run(quick: bool = False, log=print) -> dict:
                             "false_positives": s["false_positives"], "cubes": s["cubes"], "shares": shares})
         with _RayMapMemo():
             scored(readings[0], read(camera, mirror), None)
+            for names, kw in others:
+                scored(names[0], read(camera, mirror, **kw), None)
         for draw in range(DRAWS):
             cam, mir = drawn(camera, mirror, std, rng)
             # each traces its own ray map (no memo), the first of the two taking turns
@@ -101,6 +111,10 @@ def run(quick: bool = False, log=print) -> dict:
                           "on_floor": on_floor})
             scored(readings[1], plain, draw)
             scored(readings[2], carried, draw)
+            with _RayMapMemo():  # (untimed)
+                for names, kw in others:
+                    scored(names[1], read(cam, mir, **kw), draw)
+                    scored(names[2], read(cam, mir, setup_std=std, **kw), draw)
         log(f"  [{n + 1}/{len(todo)}] {sc.name} {renderer:7s}{' standing' if on_floor else ''} {len(truth)} cubes, "
             f"elapsed {time.perf_counter() - t_start:.0f} s")
     return {"records": records, "times": times, "sigma": SIGMA, "draws": DRAWS, "quick": quick,
@@ -117,7 +131,8 @@ def summarize(records: list, reading: str) -> dict:
 
 def report(result: dict, log=print) -> dict:
     from bench.bench_known_size import reading_table
-    out = reading_table(result["records"], READINGS + FLOOR_READINGS, summarize, log, extra=(
+    out = reading_table(result["records"], READINGS + FLOOR_READINGS + ONE_SIZE_READINGS + KNOWN_SIZE_READINGS,
+                        summarize, log, extra=(
         ("setup σ / image σ (median)", lambda s: "—" if s["setup_share_median"] is None
          else f"{s['setup_share_median']:.2f}"),))
     for floor in (False, True):

@@ -124,7 +124,7 @@ def _run_reconstruction(image_path, setup_path, method, cube_size, progress, blu
     from depth.errors import DepthError
     if on_floor:
         floor_height = -setup.mirror.height / 2.0
-    carried = setup.uncertainty is not None and method == "exact"
+    carried = setup.uncertainty is not None and method in ("exact", "exact_shape_prior")
     try:
         rec = reconstruct(image, setup.camera.build(), setup.mirror.build(), method=method,
                           cube_size=cube_size, progress=progress, compressed=is_jpeg(image_path),
@@ -153,11 +153,11 @@ def result_dict(image_path, setup_path, rec) -> dict:
 
 def setup_uncertainty_note(setup, result: dict, setup_path) -> str | None:
     """The line saying that the setup's `[uncertainty]` was not carried into the σ (with a method other than
-    `exact`), else None."""
+    `exact` and `exact_shape_prior`), else None."""
     if setup.uncertainty is None or "setup_uncertainty" in result:
         return None
-    return (f"note: {setup_path}'s [uncertainty] is carried through method exact's fit alone (not method "
-            f"{result['method']}'s): the ±σ above count the image's noise alone")
+    return (f"note: {setup_path}'s [uncertainty] is carried through method exact's fit alone (exact, "
+            f"exact_shape_prior; not method {result['method']}'s): the ±σ above count the image's noise alone")
 
 
 OVERLAY_FACE = (255, 255, 0)

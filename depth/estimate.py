@@ -400,7 +400,9 @@ class CubeEstimate:
     setup's σ was carried in, `depth.setup_error.with_setup_std`): the setup's share of the σ of 'depth', 'size'
     and 'center', which `std` includes. on_floor (`estimate_face_on_floor`'s only): (a point of the floor (3,),
     `up` (3,), how far the cube's bottom moves per metre of its size) of the floor the size was chosen to stand it
-    on.
+    on. common_size_from (``exact_shape_prior`` asked for ray slopes only): per size the common size was fused
+    from, (its reading's `ray_slopes`, its weight in the mean): `depth.setup_error` moves the common size with
+    them.
     """
 
     method: str
@@ -420,6 +422,7 @@ class CubeEstimate:
     ray_slopes: tuple | None = field(default=None, repr=False, compare=False)
     setup_std: dict | None = None
     on_floor: tuple | None = field(default=None, repr=False, compare=False)
+    common_size_from: tuple | None = field(default=None, repr=False, compare=False)
 
     def __bool__(self) -> bool:
         return True
@@ -1862,24 +1865,40 @@ def common_size_of(estimates):
     return fused, set_aside
 
 
-def estimate_faces_exact_shape_prior(rays: RayFunction, measurements, up=None, seed: int = 0) -> list:
+def fused_from(estimates, fused) -> tuple | None:
+    """(`ray_slopes`, weight) of each of `estimates` (`common_size_of`'s) whose size the common size `fused` is the
+    inverse-variance weighted mean of (weights summing to 1), for `CubeEstimate.common_size_from`; None where one of
+    them has no ray slopes."""
+    weighed = [e for e in estimates if e and 0.0 < e.std.get("size", 0.0) < np.inf]
+    used = [e for e, keep in zip(weighed, fused.used) if keep]
+    if any(e.ray_slopes is None for e in used):
+        return None
+    w = np.array([1.0 / e.std["size"] ** 2 for e in used])
+    return tuple((e.ray_slopes, float(x)) for e, x in zip(used, w / w.sum()))
+
+
+def estimate_faces_exact_shape_prior(rays: RayFunction, measurements, up=None, seed: int = 0,
+                                     ray_slopes: bool = False) -> list:
     """K ≥ 2 identical cubes of unknown size, solved jointly from the exact rays (beyond the paper).
 
     Each face is fitted by `exact` alone; their sizes, weighed by their σ, give the common size
     (`depth.priors.common_size`, which sets aside a size the others disagree with by over 3 σ); each face is
     fitted by `exact` again at that size (`at_common_size`). A narrow face whose own fit hardly fixes its scale
     takes it from the others. Returns one estimate per measurement (`FailedEstimate` where a fit fails, or for
-    all where fewer than 2 sizes have a σ).
+    all where fewer than 2 sizes have a σ). With `ray_slopes`, each carries its fit's and the fused sizes'
+    (`CubeEstimate.common_size_from`).
     """
-    alone = [estimate_face(rays, m, "exact", seed=seed, up=up) for m in measurements]
+    alone = [estimate_face(rays, m, "exact", seed=seed, up=up, ray_slopes=ray_slopes) for m in measurements]
     common = common_size_of(alone)
     if not common:
         return [common if e else FailedEstimate("exact_shape_prior", e.reason) for e in alone]
     fused, set_aside = common
-    return [at_common_size(estimate_face(rays, m, "exact", cube_size=fused.size, seed=seed, up=up), fused,
-                           e if aside else None)
-            if e else FailedEstimate("exact_shape_prior", e.reason)
-            for m, e, aside in zip(measurements, alone, set_aside)]
+    sources = fused_from(alone, fused) if ray_slopes else None
+    out = [at_common_size(estimate_face(rays, m, "exact", cube_size=fused.size, seed=seed, up=up,
+                                        ray_slopes=ray_slopes), fused, e if aside else None)
+           if e else FailedEstimate("exact_shape_prior", e.reason)
+           for m, e, aside in zip(measurements, alone, set_aside)]
+    return [replace(e, common_size_from=sources) if e and sources is not None else e for e in out]
 
 
 FLOOR_MAX_FITS = 8

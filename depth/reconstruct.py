@@ -20,7 +20,7 @@ from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COM
                             NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, SOLVER_MODULES, CubeEstimate,
                             FaceMeasurement, _covering, _silhouette_disagreement, at_common_size, common_size_of,
                             estimate_face, estimate_face_on_floor, estimate_faces_shape_prior, expected_work,
-                            with_size_std)
+                            fused_from, with_size_std)
 from depth.workers import SharedMemory, fork_chain, fork_helper, fork_map, import_in_background
 from raytrace.scene import Cube
 
@@ -578,8 +578,9 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         Default: the floor's height taken as exact.
     setup_std : depth.setup_error.SetupStd, optional — the σ of the setup's own numbers (the camera's place,
         turn, focal lengths and principal point; the mirror's radius, place and axis), carried into each cube's σ
-        through `exact`'s fit (method "exact" alone; with `floor_height`, the floor placed along the mirror's axis
-        moves with the mirror, and each size with it): `depth.setup_error`. Each estimate's `setup_std` keeps that
+        through `exact`'s fit (methods "exact" and "exact_shape_prior", whose common size moves as the sizes it is
+        fused from; with `floor_height`, the floor placed along the mirror's axis moves with the mirror, and each
+        size with it): `depth.setup_error`. Each estimate's `setup_std` keeps that
         share apart. Default: the setup taken as exact.
     """
     from depth.measure import BLUR_DOMAINS, checked_images
@@ -602,8 +603,9 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
         from depth.setup_error import SetupStd
         if not isinstance(setup_std, SetupStd):
             raise DepthError(f"setup_std: expected a depth.setup_error.SetupStd, got {type(setup_std).__name__}")
-        if method != "exact":
-            raise DepthError(f"setup_std: the setup's σ is carried through method exact's fit alone, not {method}'s")
+        if method not in EXACT_METHODS:
+            raise DepthError(f"setup_std: the setup's σ is carried through method exact's fit alone (exact, "
+                             f"exact_shape_prior), not {method}'s")
         if not all(hasattr(mirror, key) for key in ("radius", "center", "axis")):
             raise DepthError("setup_std: carried through a cylindrical mirror's radius, centre and axis; this mirror "
                              "has none")
@@ -1106,8 +1108,8 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         """The faces `readings` (`settled`'s) fitted by `exact` at the common size `fused` (in worker processes): per
         face, its estimate (`at_common_size`; `alone`: per face, its own `exact` reading where its size was set
         aside, else None), or the reason it is refused."""
-        fits = refits(lambda i: estimate_face(rays, attached(readings[i]), method="exact", cube_size=fused.size, up=up),
-                      readings)
+        fits = refits(lambda i: estimate_face(rays, attached(readings[i]), method="exact", cube_size=fused.size, up=up,
+                                              ray_slopes=slopes), readings)
         out = []
         for reading, at, own in zip(readings, fits, alone):
             est = at_common_size(at, fused, own)
@@ -1128,9 +1130,12 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
             return [r if r[2] else (r[0], r[1], f"{common.method}: {common.reason}", r[3], None) for r in results]
         fused, set_aside = common
         alone = [results[i][0] if out else None for i, out in zip(kept, set_aside)]
+        sources = fused_from([results[i][0] for i in kept], fused) if slopes else None  # (for the setup's σ)
         out = list(results)
         for i, again in zip(kept, refit([results[i][4] for i in kept], fused, alone)):
             est, outline, _, bbox, _ = results[i]
+            if not isinstance(again, str) and sources is not None:
+                again = replace(again, common_size_from=sources)
             out[i] = (est, outline, again, bbox, None) if isinstance(again, str) else (again, outline, None, bbox, None)
         return out
 

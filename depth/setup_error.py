@@ -97,23 +97,32 @@ def setup_effects(est: CubeEstimate, camera, mirror, std: SetupStd) -> list:
     if not all(hasattr(mirror, key) for key in ("radius", "center", "axis")):
         raise DepthError("setup_std: carried through a cylindrical mirror's radius, centre and axis; this mirror "
                          "has none")
-    pix, slopes, up_slopes = est.ray_slopes
 
-    def traced(cam, mir):
+    def traced(cam, mir, pix):
         r = mirror_rays(cam, mir, pix)
         return np.concatenate([r.points, r.directions], axis=1)
 
-    here = traced(camera, mirror)
+    def reading_move(ray_slopes, name, k, sigma, plus, minus):
+        """The move (5,) at one σ of a reading whose `ray_slopes` are given, its pose re-solved."""
+        pix, slopes, up_slopes = ray_slopes
+        here = traced(camera, mirror, pix)
+        # a point whose ray leaves the mirror either way is held where it was
+        delta = np.nan_to_num(0.5 * (traced(*plus, pix) - traced(*minus, pix)), nan=0.0, posinf=0.0, neginf=0.0)
+        delta[~np.all(np.isfinite(here), axis=1)] = 0.0
+        move = np.einsum("fnc,nc->f", slopes, delta)
+        if name == "mirror_axis_deg":  # the scene's vertical, the axis, turns too: an upright face with it
+            move += up_slopes @ (np.deg2rad(sigma) * mirror.frame[k])
+        return move
+
     out = []
     for name, sigma in std.items():
         for k in range(_COMPONENTS[name]):
             plus, minus = _moved(camera, mirror, name, k, sigma), _moved(camera, mirror, name, k, -sigma)
-            # a point whose ray leaves the mirror either way is held where it was
-            delta = np.nan_to_num(0.5 * (traced(*plus) - traced(*minus)), nan=0.0, posinf=0.0, neginf=0.0)
-            delta[~np.all(np.isfinite(here), axis=1)] = 0.0
-            move = np.einsum("fnc,nc->f", slopes, delta)
-            if name == "mirror_axis_deg":  # the scene's vertical, the axis, turns too: an upright face with it
-                move += up_slopes @ (np.deg2rad(sigma) * mirror.frame[k])
+            move = reading_move(est.ray_slopes, name, k, sigma, plus, minus)
+            if est.common_size_from is not None:  # the common size moves as the sizes it was fused from
+                d_size = sum(w * reading_move(rs, name, k, sigma, plus, minus)[3] for rs, w in est.common_size_from)
+                slope = est.size_slope
+                move += np.r_[d_size * np.asarray(slope["center"]), d_size, d_size * slope["z"]]
             if est.on_floor is not None:
                 move += _floor_move(est, mirror, plus[1], minus[1], move)
             depths = [m.distance_to_axis((est.center + sgn * move[:3])[None])[0]

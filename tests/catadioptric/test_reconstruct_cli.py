@@ -123,8 +123,35 @@ def test_the_setup_s_uncertainty_table_widens_each_sigma_by_its_share(scene, cap
     other = scene / "ddar_unsure.json"
     assert main(["reconstruct", str(scene / "mirror.png"), "--setup", str(scene / "unsure.toml"), "--method", "ddar",
                  "-o", str(other)]) == 0
-    assert "[uncertainty] is carried through method exact's fit alone (not method ddar's)" in capsys.readouterr().out
+    assert ("[uncertainty] is carried through method exact's fit alone (exact, exact_shape_prior; not method "
+            "ddar's)") in capsys.readouterr().out
     assert "setup_uncertainty" not in json.loads(other.read_text())
+
+
+def test_cubes_of_one_size_carry_the_setup_s_uncertainty_through_their_common_size(scene, capsys):
+    """`--method exact_shape_prior` with the camera's place known to 1 mm: the readings are the same as without the
+    table; each cube's size is the common size, so the setup moves every size alike: each cube's size share is the
+    same, and not 0 (a fit at a known size moves no size of its own). Each σ is the image's own and the setup's
+    share in quadrature."""
+    import tomli_w, tomllib
+    img = str(scene / "mirror.png")
+    setup = tomllib.loads((scene / "mirror.toml").read_text())
+    setup["uncertainty"] = {"camera_position": 0.001}
+    (scene / "prior_unsure.toml").write_text(tomli_w.dumps(setup))
+    plain, unsure = scene / "prior_plain.json", scene / "prior_unsure.json"
+    method = ["--method", "exact_shape_prior"]
+    assert main(["reconstruct", img, *method, "-o", str(plain)]) == 0
+    assert main(["reconstruct", img, *method, "--setup", str(scene / "prior_unsure.toml"), "-o", str(unsure)]) == 0
+    capsys.readouterr()
+    a, b = (json.loads(p.read_text()) for p in (plain, unsure))
+    assert b["method"] == "exact_shape_prior" and b["setup_uncertainty"] == {"camera_position": 0.001}
+    assert len(a["cubes"]) == len(b["cubes"]) == 2
+    shares = [c["uncertainty_from_setup"] for c in b["cubes"]]
+    assert shares[0]["size"] > 1e-6 and shares[0]["size"] == pytest.approx(shares[1]["size"], rel=1e-9)
+    for x, y, share in zip(a["cubes"], b["cubes"], shares):
+        assert y["center"] == x["center"] and y["size"] == x["size"]
+        assert y["uncertainty"]["depth"] == pytest.approx(np.hypot(x["uncertainty"]["depth"], share["depth"]))
+        assert y["uncertainty"]["size"] == pytest.approx(np.hypot(x["uncertainty"]["size"], share["size"]))
 
 
 def test_a_bad_uncertainty_table_is_one_line_and_writes_nothing(scene, capsys, tmp_path):
