@@ -230,7 +230,8 @@ def print_table(console, result: dict, truth: dict | None = None) -> None:
     if any(m is not None for m in misfits):
         t.caption = "misfit: rms distance (px) of the face's edge points from the fitted square"
     if carried:
-        t.caption = (t.caption + "; " if t.caption else "") + "setup σ: the share (m) of ±σ the setup's uncertainty gives"
+        share = "setup σ: the share (m) of ±σ the setup's uncertainty gives"
+        t.caption = f"{t.caption}; {share}" if t.caption else share
     console.print(t)
     if any(flags):
         console.print(f"! the face's edges miss the fitted square by more than {EDGE_MISFIT_WARN_PX} px rms: "
