@@ -47,19 +47,11 @@ def setup_std(camera):
     return SetupStd(**{**SIGMA, "focal_px": SIGMA["focal_px"] * float(camera.K[0, 0])})
 
 
-def drawn(camera, mirror, std, rng):
-    """(camera, mirror) with each number of `std` drawn off by N(0, its σ)."""
-    from depth.setup_error import _COMPONENTS, _moved
-    for name, sigma in std.items():
-        for k in range(_COMPONENTS[name]):
-            camera, mirror = _moved(camera, mirror, name, k, rng.normal(0.0, sigma))
-    return camera, mirror
-
-
 def run(quick: bool = False, log=print) -> dict:
     from bench import bench_on_floor
     from bench.bench_reconstruct import _RayMapMemo, cases, mitsuba_image, our_render, score, with_truth
     from depth.reconstruct import reconstruct
+    from depth.setup_error import drawn
     records, times = [], []
     floating, standing = cases(quick), bench_on_floor.cases(quick)
     todo = [(r, sc, False) for r, sc in floating] + [(r, sc, True) for r, sc in standing]

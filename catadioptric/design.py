@@ -295,9 +295,10 @@ def setup_depth_error(setup: Setup, depths, std, cube_size: float = 0.04, progre
         meas = _exact_edges(camera, mirror, cube)
         est = None if meas is None else estimate_face(lambda px: rays(px)[:2], meas, "exact", up=up, ray_slopes=True)
         if est:
+            effects = setup_effects(est, camera, mirror, std)
             total = 0.0
             for name, _ in std.items():
-                var = sum(e[5] ** 2 for n, _, e in setup_effects(est, camera, mirror, std) if n == name)
+                var = sum(e[5] ** 2 for n, _, e in effects if n == name)
                 out[name][i] = np.sqrt(var)
                 total += var
             out["total"][i] = np.sqrt(total)

@@ -94,7 +94,7 @@ def _run_reconstruction(image_path, setup_path, method, cube_size, progress, blu
         # modules below are imported; its errors are raised in turn, below
         reading = reader.submit(read_image, image_path)
         from depth.measure import BLUR_DOMAINS
-        from depth.reconstruct import ALL_METHODS, DEFAULT_METHOD, reconstruct
+        from depth.reconstruct import ALL_METHODS, DEFAULT_METHOD, EXACT_METHODS, reconstruct
     method = method or DEFAULT_METHOD
     if method not in ALL_METHODS:
         raise CatadioptricError(f"--method: expected one of {', '.join(ALL_METHODS)}, got {method!r}")
@@ -124,7 +124,7 @@ def _run_reconstruction(image_path, setup_path, method, cube_size, progress, blu
     from depth.errors import DepthError
     if on_floor:
         floor_height = -setup.mirror.height / 2.0
-    carried = setup.uncertainty is not None and method in ("exact", "exact_shape_prior")
+    carried = setup.uncertainty is not None and method in EXACT_METHODS
     try:
         rec = reconstruct(image, setup.camera.build(), setup.mirror.build(), method=method,
                           cube_size=cube_size, progress=progress, compressed=is_jpeg(image_path),

@@ -61,7 +61,7 @@ class SetupStd:
         return [(f.name, getattr(self, f.name)) for f in fields(self) if getattr(self, f.name) > 0]
 
 
-def _moved(camera, mirror, name: str, k: int, delta: float):
+def moved(camera, mirror, name: str, k: int, delta: float):
     """(camera, mirror) with parameter `name`'s k-th component moved by delta (its unit)."""
     from scipy.spatial.transform import Rotation  # (not at import: the command's start-up does without scipy)
 
@@ -85,6 +85,22 @@ def _moved(camera, mirror, name: str, k: int, delta: float):
 
 _COMPONENTS = {"camera_position": 3, "camera_rotation_deg": 3, "focal_px": 2, "principal_px": 2, "mirror_radius": 1,
                "mirror_center": 3, "mirror_axis_deg": 2}
+"""How many components each number of `SetupStd` has (each moved on its own by `moved`)."""
+
+
+def drawn(camera, mirror, std: SetupStd, rng):
+    """(camera, mirror) with each component of each number of `std` drawn off by N(0, its σ) (`rng`, a numpy
+    Generator): a setup as it might have been measured."""
+    for name, sigma in std.items():
+        for k in range(_COMPONENTS[name]):
+            camera, mirror = moved(camera, mirror, name, k, rng.normal(0.0, sigma))
+    return camera, mirror
+
+
+def _along_size(est: CubeEstimate, d_size: float) -> np.ndarray:
+    """The move (5,) of `est`'s centre (3), size and z as its size moves by `d_size`, its pose along `size_slope`."""
+    slope = est.size_slope
+    return np.r_[d_size * np.asarray(slope["center"]), d_size, d_size * slope["z"]]
 
 
 def setup_effects(est: CubeEstimate, camera, mirror, std: SetupStd) -> list:
@@ -102,13 +118,16 @@ def setup_effects(est: CubeEstimate, camera, mirror, std: SetupStd) -> list:
         r = mirror_rays(cam, mir, pix)
         return np.concatenate([r.points, r.directions], axis=1)
 
-    def reading_move(ray_slopes, name, k, sigma, plus, minus):
-        """The move (5,) at one σ of a reading whose `ray_slopes` are given, its pose re-solved."""
-        pix, slopes, up_slopes = ray_slopes
-        here = traced(camera, mirror, pix)
+    # each reading whose rays move it: this one's, and those of the sizes a common size was fused from
+    readings = [est.ray_slopes] + [rs for rs, _ in est.common_size_from or ()]
+    held = [~np.all(np.isfinite(traced(camera, mirror, pix)), axis=1) for pix, _, _ in readings]
+
+    def reading_move(j, name, k, sigma, plus, minus):
+        """The move (5,) at one σ of reading j (of `readings`), its pose re-solved."""
+        pix, slopes, up_slopes = readings[j]
         # a point whose ray leaves the mirror either way is held where it was
         delta = np.nan_to_num(0.5 * (traced(*plus, pix) - traced(*minus, pix)), nan=0.0, posinf=0.0, neginf=0.0)
-        delta[~np.all(np.isfinite(here), axis=1)] = 0.0
+        delta[held[j]] = 0.0
         move = np.einsum("fnc,nc->f", slopes, delta)
         if name == "mirror_axis_deg":  # the scene's vertical, the axis, turns too: an upright face with it
             move += up_slopes @ (np.deg2rad(sigma) * mirror.frame[k])
@@ -117,12 +136,11 @@ def setup_effects(est: CubeEstimate, camera, mirror, std: SetupStd) -> list:
     out = []
     for name, sigma in std.items():
         for k in range(_COMPONENTS[name]):
-            plus, minus = _moved(camera, mirror, name, k, sigma), _moved(camera, mirror, name, k, -sigma)
-            move = reading_move(est.ray_slopes, name, k, sigma, plus, minus)
+            plus, minus = moved(camera, mirror, name, k, sigma), moved(camera, mirror, name, k, -sigma)
+            move = reading_move(0, name, k, sigma, plus, minus)
             if est.common_size_from is not None:  # the common size moves as the sizes it was fused from
-                d_size = sum(w * reading_move(rs, name, k, sigma, plus, minus)[3] for rs, w in est.common_size_from)
-                slope = est.size_slope
-                move += np.r_[d_size * np.asarray(slope["center"]), d_size, d_size * slope["z"]]
+                move += _along_size(est, sum(w * reading_move(j, name, k, sigma, plus, minus)[3]
+                                             for j, (_, w) in enumerate(est.common_size_from, start=1)))
             if est.on_floor is not None:
                 move += _floor_move(est, mirror, plus[1], minus[1], move)
             depths = [m.distance_to_axis((est.center + sgn * move[:3])[None])[0]
@@ -144,9 +162,7 @@ def _floor_move(est: CubeEstimate, mirror, plus, minus, move) -> np.ndarray:
     ends = [(m.center + height * m.axis, sign * m.axis) for m in (plus, minus)]
     d_point, d_up = 0.5 * (ends[0][0] - ends[1][0]), 0.5 * (ends[0][1] - ends[1][1])
     d_gap = up @ move[:3] + (est.center - point) @ d_up - up @ d_point  # at the reading's size
-    d_size = -d_gap / rate
-    slope = est.size_slope
-    return np.r_[d_size * np.asarray(slope["center"]), d_size, d_size * slope["z"]]
+    return _along_size(est, -d_gap / rate)
 
 
 def with_setup_std(est: CubeEstimate, camera, mirror, std: SetupStd) -> CubeEstimate:

@@ -133,7 +133,7 @@ def test_the_setup_s_depth_error_is_what_whole_fits_through_a_moved_setup_make_o
     mirror's centre give the same share (a setup moved as a whole moves no depth); and a setup taken as exact
     gives none."""
     from depth.estimate import estimate_face
-    from depth.setup_error import SetupStd, _moved
+    from depth.setup_error import SetupStd, moved
     from raytrace.scene import Cube
     from raytrace.truth import mirror_rays
     setup = mirror_setup(0.1, 0.55, resolution=(640, 480), focal=1400.0)
@@ -160,7 +160,7 @@ def test_the_setup_s_depth_error_is_what_whole_fits_through_a_moved_setup_make_o
         assert abs(read(camera, mirror, meas) - depth) < 1e-6
 
         def half_move(name, k, delta):
-            ends = [read(*_moved(camera, mirror, name, k, sgn * delta), meas) for sgn in (1.0, -1.0)]
+            ends = [read(*moved(camera, mirror, name, k, sgn * delta), meas) for sgn in (1.0, -1.0)]
             return 0.5 * (ends[0] - ends[1])
         assert out["mirror_radius"][i] == pytest.approx(abs(half_move("mirror_radius", 0, 0.0003)), rel=0.03)
         # fx and fy in quadrature: the root sum of squares of both moves

@@ -9,7 +9,7 @@ import pytest
 
 from depth.errors import DepthError
 from depth.estimate import estimate_face
-from depth.setup_error import SetupStd, _moved, setup_effects, with_setup_std
+from depth.setup_error import SetupStd, drawn, moved, setup_effects, with_setup_std
 from raytrace.truth import mirror_rays
 
 UP = np.array([0.0, 1.0, 0.0])
@@ -51,7 +51,7 @@ def test_the_first_order_moves_match_whole_fits_through_the_moved_setup(rig, yaw
     for name, k, delta in CASES:
         (predicted,) = [e for n, kk, e in setup_effects(est, rig.camera, rig.mirror, SetupStd(**{name: delta}))
                         if kk == k]
-        ends = [_moved(rig.camera, rig.mirror, name, k, sgn * delta) for sgn in (1.0, -1.0)]
+        ends = [moved(rig.camera, rig.mirror, name, k, sgn * delta) for sgn in (1.0, -1.0)]
         fits = [read(rig, meas, *end) for end in ends]
         actual = np.r_[0.5 * (fits[0].center - fits[1].center), 0.5 * (fits[0].size - fits[1].size),
                        0.5 * (depth_of(fits[0], ends[0][1]) - depth_of(fits[1], ends[1][1]))]
@@ -92,11 +92,7 @@ def test_the_setup_s_sigma_covers_setups_drawn_off_by_it(rig):
     rng = np.random.default_rng(7)
     z_scores, alone = [], []
     for _ in range(10):
-        camera, mirror = rig.camera, rig.mirror
-        for name, sigma in std.items():
-            for k in range({"camera_position": 3, "camera_rotation_deg": 3, "focal_px": 2, "principal_px": 2,
-                            "mirror_radius": 1, "mirror_center": 3, "mirror_axis_deg": 2}[name]):
-                camera, mirror = _moved(camera, mirror, name, k, rng.normal(0.0, sigma))
+        camera, mirror = drawn(rig.camera, rig.mirror, std, rng)
         for cube, m in zip(cubes, meas):
             est = read(rig, m, camera, mirror, slopes=True)
             error = depth_of(est, mirror) - rig.depth(cube)
@@ -132,31 +128,31 @@ def test_a_setup_taken_as_exact_adds_nothing_and_bad_sigmas_are_refused(rig):
 
 
 def test_each_number_moves_what_its_name_says(rig):
-    """`_moved`: the camera's place along a world axis, its turn held; a turn about the camera's own axis k leaving
+    """`moved`: the camera's place along a world axis, its turn held; a turn about the camera's own axis k leaving
     that axis where it was and turning the others by the angle; fx, fy, cx, cy; the radius; the mirror's centre;
     its axis tilted by the angle, square to it."""
     from raytrace.camera import PinholeCamera
     cam, mir = PinholeCamera.from_look_at((800, 600), (1750.0, 1700.0), None, (0.1, 0.2, 0.55), (0.0, 0.05, 0.0),
                                           (0.1, 1.0, 0.0)), rig.mirror  # turned about every axis
-    c, m = _moved(cam, mir, "camera_position", 2, 0.003)
+    c, m = moved(cam, mir, "camera_position", 2, 0.003)
     assert np.allclose(c.position - cam.position, [0, 0, 0.003]) and np.array_equal(c.R, cam.R) and m is mir
     for k in range(3):
-        c, _ = _moved(cam, mir, "camera_rotation_deg", k, 2.0)
+        c, _ = moved(cam, mir, "camera_rotation_deg", k, 2.0)
         assert np.allclose(c.R[k], cam.R[k])
         for j in {0, 1, 2} - {k}:
             assert np.degrees(np.arccos(np.clip(c.R[j] @ cam.R[j], -1, 1))) == pytest.approx(2.0)
     for name, k, cell in (("focal_px", 0, (0, 0)), ("focal_px", 1, (1, 1)), ("principal_px", 0, (0, 2)),
                           ("principal_px", 1, (1, 2))):
-        c, _ = _moved(cam, mir, name, k, 1.5)
-        moved = np.zeros((3, 3))
-        moved[cell] = 1.5
-        assert np.allclose(c.K - cam.K, moved)
-    _, m = _moved(cam, mir, "mirror_radius", 0, 0.001)
+        c, _ = moved(cam, mir, name, k, 1.5)
+        expected = np.zeros((3, 3))
+        expected[cell] = 1.5
+        assert np.allclose(c.K - cam.K, expected)
+    _, m = moved(cam, mir, "mirror_radius", 0, 0.001)
     assert m.radius == pytest.approx(mir.radius + 0.001)
-    _, m = _moved(cam, mir, "mirror_center", 0, -0.002)
+    _, m = moved(cam, mir, "mirror_center", 0, -0.002)
     assert np.allclose(m.center - mir.center, [-0.002, 0, 0])
     for k in range(2):
-        _, m = _moved(cam, mir, "mirror_axis_deg", k, 0.5)
+        _, m = moved(cam, mir, "mirror_axis_deg", k, 0.5)
         assert np.degrees(np.arccos(m.axis @ mir.axis)) == pytest.approx(0.5)
         assert abs((m.axis - mir.axis) @ mir.frame[k]) < 1e-12  # tilted about frame[k], so not toward it
 
@@ -197,7 +193,7 @@ def test_a_cube_on_the_floor_moves_with_the_setup_and_the_floor_with_the_mirror(
     for name, k, delta in CASES + [("mirror_center", 1, 0.002)]:  # (the mirror, and the floor, up its axis)
         (predicted,) = [e for n, kk, e in setup_effects(est, rig.camera, rig.mirror, SetupStd(**{name: delta}))
                         if kk == k]
-        ends = [_moved(rig.camera, rig.mirror, name, k, sgn * delta) for sgn in (1.0, -1.0)]
+        ends = [moved(rig.camera, rig.mirror, name, k, sgn * delta) for sgn in (1.0, -1.0)]
         fits = [on_floor(*end) for end in ends]
         actual = np.r_[0.5 * (fits[0].center - fits[1].center), 0.5 * (fits[0].size - fits[1].size),
                        0.5 * (depth_of(fits[0], ends[0][1]) - depth_of(fits[1], ends[1][1]))]
@@ -223,7 +219,7 @@ def test_cubes_of_one_size_move_with_the_common_size_the_setup_moves(rig):
     assert all(e.common_size_from is not None and len(e.common_size_from) == 3 for e in ests)
     for name, k, delta in [("camera_position", 0, 0.002), ("focal_px", 1, 10.0), ("mirror_radius", 0, 0.0005),
                            ("mirror_axis_deg", 0, 0.05)]:
-        ends = [_moved(rig.camera, rig.mirror, name, k, sgn * delta) for sgn in (1.0, -1.0)]
+        ends = [moved(rig.camera, rig.mirror, name, k, sgn * delta) for sgn in (1.0, -1.0)]
         fits = [joint(*end) for end in ends]
         for i, est in enumerate(ests):
             (predicted,) = [e for n, kk, e in setup_effects(est, rig.camera, rig.mirror, SetupStd(**{name: delta}))
