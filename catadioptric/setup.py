@@ -9,6 +9,9 @@ Extensions to the contract (all optional, so older files stay valid):
   `light_direction` (world vector the light travels along; the default comes from behind the
   camera, above and to the side, so a cube face looking at the mirror is lit and its side
   faces are not lit alike), `ambient` (0..1).
+- `[camera] distortion`: the lens's distortion, OpenCV's coefficients (k1, k2, p1, p2[, k3[, k4, k5, k6]])
+  as `cv2.calibrateCamera` gives them; it must be one-to-one over the image. Absent: an ideal pinhole.
+- `[uncertainty]`: the σ of the setup's numbers (`UncertaintyConfig`).
 """
 
 from __future__ import annotations
@@ -113,6 +116,18 @@ def _no_unknown(d: dict, allowed: set, w: _Where) -> None:
                          f"(expected one of: {', '.join(sorted(allowed))})")
 
 
+def _distortion(d: dict, w: _Where) -> tuple[float, ...] | None:
+    """`[camera] distortion`: OpenCV's 4, 5 or 8 coefficients, or None where the key is absent."""
+    if "distortion" not in d:
+        return None
+    x = d["distortion"]
+    if not isinstance(x, list) or len(x) not in (4, 5, 8) or not all(_is_number(v) for v in x):
+        raise w.error("distortion", "a list of 4, 5 or 8 numbers, OpenCV's (k1, k2, p1, p2[, k3[, k4, k5, k6]])", x)
+    if not all(math.isfinite(v) for v in x):
+        raise w.error("distortion", "a list of finite numbers", x)
+    return tuple(float(v) for v in x)
+
+
 @dataclass(frozen=True)
 class CameraConfig:
     """The pinhole camera of `[camera]` (OpenCV conventions)."""
@@ -123,8 +138,9 @@ class CameraConfig:
     look_at: tuple[float, float, float]
     up: tuple[float, float, float]
     principal_px: tuple[float, float] | None = None
+    distortion: tuple[float, ...] | None = None  # OpenCV's (k1, k2, p1, p2[, k3[, k4, k5, k6]]); None: none
 
-    KEYS: ClassVar[set] = {"resolution", "focal_px", "principal_px", "position", "look_at", "up"}
+    KEYS: ClassVar[set] = {"resolution", "focal_px", "principal_px", "position", "look_at", "up", "distortion"}
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "<dict>", prefix: str = "camera.") -> "CameraConfig":
@@ -137,7 +153,8 @@ class CameraConfig:
                   position=_vector(d, "position", w, 3),
                   look_at=_vector(d, "look_at", w, 3),
                   up=_vector(d, "up", w, 3, nonzero=True),
-                  principal_px=_vector(d, "principal_px", w, 2) if "principal_px" in d else None)
+                  principal_px=_vector(d, "principal_px", w, 2) if "principal_px" in d else None,
+                  distortion=_distortion(d, w))
         view = np.subtract(cam.look_at, cam.position)
         if np.linalg.norm(view) == 0:
             raise w.error("look_at", "a point different from camera.position", list(cam.look_at))
@@ -145,6 +162,15 @@ class CameraConfig:
         if cosang > 1 - 1e-9:
             raise w.error("up", "a direction not parallel to the viewing direction (look_at - position)",
                           list(cam.up))
+        if cam.distortion is not None:
+            from raytrace.camera import distortion_fold
+            from raytrace.lens import as_distortion
+            (fx, fy), (cx, cy) = cam.focal_px, cam.principal
+            fold = distortion_fold(cam.resolution, [[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]],
+                                   as_distortion(cam.distortion))
+            if fold is not None:
+                raise w.error("distortion", "coefficients whose distortion is one-to-one over the image (these fold "
+                              f"near pixel ({fold[0]:.0f}, {fold[1]:.0f}))", list(cam.distortion))
         return cam
 
     @property
@@ -159,13 +185,15 @@ class CameraConfig:
         if self.principal_px is not None:
             d["principal_px"] = list(self.principal_px)
         d.update(position=list(self.position), look_at=list(self.look_at), up=list(self.up))
+        if self.distortion is not None:
+            d["distortion"] = list(self.distortion)
         return d
 
     def build(self):
         """The `raytrace.camera.PinholeCamera` of this config."""
         from raytrace.camera import PinholeCamera
         return PinholeCamera.from_look_at(self.resolution, self.focal_px, self.principal,
-                                          self.position, self.look_at, self.up)
+                                          self.position, self.look_at, self.up, self.distortion)
 
 
 @dataclass(frozen=True)

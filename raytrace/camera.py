@@ -4,7 +4,8 @@ Every camera maps pixels (u, v) = (column, row) to world rays with `rays` and wo
 back to pixels with `project`; `sample_offsets` gives a reproducible stratified sub-pixel pattern
 and `pixel_sample_offsets` that pattern rotated differently in every pixel.
 Conventions are those of docs/CONVENTIONS.md (OpenCV pinhole, pixel (0, 0) is the centre of
-the top-left pixel).
+the top-left pixel). A pinhole camera may carry a lens's distortion, OpenCV's model (`raytrace.lens`):
+its rays and projections then bend by it, so everything built on them does.
 """
 
 from __future__ import annotations
@@ -22,8 +23,9 @@ from ._validate import (
     as_vector,
 )
 from .errors import RaytraceError
+from .lens import as_distortion, distort, distortion_jacobian, undistort
 
-__all__ = ["PinholeCamera", "XSlitCamera", "PushbroomCamera", "sample_offsets", "pixel_sample_offsets",
+__all__ = ["PinholeCamera", "distortion_fold", "XSlitCamera", "PushbroomCamera", "sample_offsets", "pixel_sample_offsets",
            "pixel_grid"]
 
 
@@ -105,6 +107,29 @@ def pixel_sample_offsets(pixels, spp: int, seed: int = 0) -> np.ndarray:
     return np.mod(base[None, :, :] + shift[:, None, :], 1.0) - 0.5
 
 
+def distortion_fold(resolution, K, distortion) -> tuple[float, float] | None:
+    """Where a pinhole camera's `distortion` (`raytrace.lens.as_distortion`'s, or None) fails to map a region
+    onto its image one-to-one: a pixel (u, v) of a grid over the image of `resolution` (W, H) and its border
+    (1 px beyond it) that does not undistort through the intrinsics `K` (3, 3), or where the distortion's
+    Jacobian is not positive; None where there is none (or no distortion)."""
+    if distortion is None:
+        return None
+    w, h = resolution
+    gu, gv = np.meshgrid(np.linspace(-1.0, w, 65), np.linspace(-1.0, h, 49))
+    edge = np.linspace(0.0, 1.0, 257)
+    px = np.concatenate([np.column_stack([gu.ravel(), gv.ravel()]),
+                         np.column_stack([-1.0 + (w + 1.0) * edge, np.full_like(edge, -1.0)]),
+                         np.column_stack([-1.0 + (w + 1.0) * edge, np.full_like(edge, float(h))]),
+                         np.column_stack([np.full_like(edge, -1.0), -1.0 + (h + 1.0) * edge]),
+                         np.column_stack([np.full_like(edge, float(w)), -1.0 + (h + 1.0) * edge])])
+    Kinv = np.linalg.inv(np.asarray(K, dtype=np.float64))
+    xy, err = undistort(px @ Kinv[:2, :2].T + Kinv[:2, 2], distortion)
+    J = distortion_jacobian(xy, distortion)
+    det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
+    bad = ~((err <= 1e-10) & (det > 0))
+    return tuple(float(v) for v in px[np.argmax(bad)]) if bad.any() else None
+
+
 def _normalize_rows(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v, axis=1, keepdims=True)
 
@@ -122,12 +147,16 @@ class PinholeCamera:
         World→camera rotation; rows are the camera axes x (right), y (down), z (forward).
     position : (3,) float64
         Camera centre in the world.
+    distortion : (8,) float64 or None
+        The lens's distortion, OpenCV's (k1, k2, p1, p2, k3, k4, k5, k6) (`raytrace.lens`; 4, 5 or 8
+        numbers are accepted); None (or all zero): an ideal pinhole. It must be one-to-one over the image.
     """
 
     resolution: tuple[int, int]
     K: np.ndarray
     R: np.ndarray
     position: np.ndarray
+    distortion: np.ndarray | None = None
     is_central: bool = field(default=True, init=False, repr=False)
 
     def __post_init__(self):
@@ -142,9 +171,26 @@ class PinholeCamera:
         object.__setattr__(self, "K", K)
         object.__setattr__(self, "R", as_rotation(self.R, "R"))
         object.__setattr__(self, "position", as_vector(self.position, "position"))
+        object.__setattr__(self, "distortion", as_distortion(self.distortion))
+        if self.distortion is not None:
+            self._check_one_to_one()
+
+    def _check_one_to_one(self) -> None:
+        """Raise unless the distortion is one-to-one over the image (`distortion_fold`)."""
+        fold = distortion_fold(self.resolution, self.K, self.distortion)
+        if fold is not None:
+            raise RaytraceError(f"distortion: expected coefficients whose distortion is one-to-one over the image; "
+                                f"it folds near pixel ({fold[0]:.0f}, {fold[1]:.0f}) "
+                                f"(coefficients {self.distortion.tolist()})")
+
+    def _normalized_distorted(self, px: np.ndarray) -> np.ndarray:
+        """K⁻¹ (u, v, 1)'s first two coordinates, (N, 2): the distorted normalised points of pixels."""
+        Kinv = np.linalg.inv(self.K)
+        return px @ Kinv[:2, :2].T + Kinv[:2, 2]
 
     @classmethod
-    def from_look_at(cls, resolution, focal_px, principal_px=None, position=None, look_at=None, up=(0.0, 1.0, 0.0)):
+    def from_look_at(cls, resolution, focal_px, principal_px=None, position=None, look_at=None, up=(0.0, 1.0, 0.0),
+                     distortion=None):
         """Build a camera from the setup contract's keys.
 
         Parameters
@@ -153,6 +199,7 @@ class PinholeCamera:
         focal_px : float or (fx, fy), pixels, > 0
         position, look_at, up : (3,) world
         principal_px : (cx, cy) or None for ((W-1)/2, (H-1)/2)
+        distortion : OpenCV's (k1, k2, p1, p2[, k3[, k4, k5, k6]]) or None for an ideal pinhole
         """
         w, h = as_resolution(resolution)
         f = np.atleast_1d(np.asarray(focal_px, dtype=np.float64)) if focal_px is not None else None
@@ -182,7 +229,7 @@ class PinholeCamera:
         x /= np.linalg.norm(x)
         y = np.cross(z, x)
         K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
-        return cls(resolution=(w, h), K=K, R=np.stack([x, y, z]), position=position)
+        return cls(resolution=(w, h), K=K, R=np.stack([x, y, z]), position=position, distortion=distortion)
 
     @property
     def width(self) -> int:
@@ -209,8 +256,12 @@ class PinholeCamera:
         directions : (N, 3) float64, unit
         """
         px = as_points(pixels, "pixels", width=2)
-        Kinv = np.linalg.inv(self.K)
-        d_cam = px @ Kinv[:, :2].T + Kinv[:, 2]
+        if self.distortion is None:
+            Kinv = np.linalg.inv(self.K)
+            d_cam = px @ Kinv[:, :2].T + Kinv[:, 2]
+        else:
+            xy, _ = undistort(self._normalized_distorted(px), self.distortion)
+            d_cam = np.column_stack([xy, np.ones(len(xy))])
         d = _normalize_rows(d_cam @ self.R)
         return np.broadcast_to(self.position, d.shape).copy(), d
 
@@ -228,10 +279,14 @@ class PinholeCamera:
         """
         p = as_points(points, "points")
         xc = (p - self.position) @ self.R.T
-        uvw = xc @ self.K.T
+        if self.distortion is None:
+            uvw = xc @ self.K.T
+            with np.errstate(divide="ignore", invalid="ignore"):
+                pix = uvw[:, :2] / uvw[:, 2:3]
+            return pix, xc[:, 2].copy()
         with np.errstate(divide="ignore", invalid="ignore"):
-            pix = uvw[:, :2] / uvw[:, 2:3]
-        return pix, xc[:, 2].copy()
+            xy = distort(xc[:, :2] / xc[:, 2:3], self.distortion)
+        return xy @ self.K[:2, :2].T + self.K[:2, 2], xc[:, 2].copy()
 
 
 @dataclass(frozen=True)

@@ -29,6 +29,24 @@ def test_round_trip_dict_and_toml(valid_setup, tmp_path):
     assert "[camera]" in setup_to_toml(s)
 
 
+def test_the_lens_distortion_is_optional_and_round_trips(valid_setup, write_setup, tmp_path):
+    """`[camera] distortion` (an extension): OpenCV's coefficients, kept through a round trip and built into the
+    camera, whose pixels then move by them."""
+    assert load_setup(write_setup(valid_setup)).camera.distortion is None
+    valid_setup["camera"]["distortion"] = [-0.2, 0.05, 1e-3, -1e-3, 0.01]
+    s = load_setup(write_setup(valid_setup))
+    assert s.camera.distortion == (-0.2, 0.05, 1e-3, -1e-3, 0.01)
+    p = tmp_path / "again.toml"
+    save_setup(s, p)
+    assert load_setup(p) == s and "distortion = [" in p.read_text()
+    cam = s.camera.build()
+    np.testing.assert_array_equal(cam.distortion, [-0.2, 0.05, 1e-3, -1e-3, 0.01, 0.0, 0.0, 0.0])
+    del valid_setup["camera"]["distortion"]
+    ideal = load_setup(write_setup(valid_setup)).camera.build()
+    corner = np.array([[0.0, 0.0]])
+    assert np.linalg.norm(cam.project(ideal.rays(corner)[0] + ideal.rays(corner)[1])[0] - corner) > 1.0
+
+
 def test_builtin_demo_setup_is_valid():
     from importlib.resources import files
     s = load_setup(files("catadioptric") / "data" / "demo.toml")
@@ -68,6 +86,10 @@ BAD = [
     ("camera.up", [0.0, 0.0, 0.0], "camera.up: expected a non-zero vector"),
     ("camera.up", [0.0, 0.0, -1.0], "camera.up: expected a direction not parallel"),
     ("camera.fov", 40.0, "camera.fov: unknown key"),
+    ("camera.distortion", [0.1, 0.2], "camera.distortion: expected a list of 4, 5 or 8 numbers"),
+    ("camera.distortion", [0.1, math.inf, 0.0, 0.0], "camera.distortion: expected a list of finite numbers"),
+    ("camera.distortion", [-5.0, 0.0, 0.0, 0.0], "camera.distortion: expected coefficients whose distortion is "
+                                                  "one-to-one over the image \\(these fold near pixel"),
     ("camera.position", [0.0, 0.0, 0.05], "camera.position: expected a point outside the mirror"),
     ("camera.look_at", [0.0, 0.0, 1.5], "camera.look_at: expected the camera to look at the mirror"),
     ("mirror.radius", -0.1, "mirror.radius: expected a positive number"),
