@@ -641,7 +641,8 @@ def _bays_at(rgb: np.ndarray, near: np.ndarray, search: np.ndarray, r: int, dist
                 or np.count_nonzero(ring & near[win] & ~differs) < BAY_MOUTH_SHARE * n_ring):
             continue
         mouth = cv2.dilate(b8, np.ones((3, 3), np.uint8)).view(bool) & near[win] & ~bay
-        down = np.nonzero(mouth)[0].mean() > np.nonzero(bay)[0].mean()
+        # no mouth: upward, as the comparison with the empty mean's NaN gave (without its warning)
+        down = bool(mouth.any()) and np.nonzero(mouth)[0].mean() > np.nonzero(bay)[0].mean()
         # the bay's sides as lines col = a·row + b (its 3 end rows left out), in the rows and columns of `near`
         rows, first, last = (t[3:-3] for t in _row_extents(bay))
         if len(rows) < 4:
