@@ -9,7 +9,9 @@ A real lens bends the pinhole's rays. OpenCV's model maps the ideal normalised i
 
 with the coefficients in OpenCV's order (k1, k2, p1, p2[, k3[, k4, k5, k6]]), as
 `cv2.calibrateCamera` gives them; the pixel is then K (x_d, y_d, 1). `undistort` inverts the
-map by Newton's method on its exact Jacobian, vectorised over the points.
+map by Newton's method on its exact Jacobian, vectorised over the points. `distorted_image` makes the image a
+distorted camera takes from a finer image of the ideal camera's view (any renderer's), each pixel integrating its
+area.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import numpy as np
 
 from .errors import RaytraceError
 
-__all__ = ["as_distortion", "distort", "distortion_jacobian", "undistort"]
+__all__ = ["as_distortion", "distort", "distortion_jacobian", "undistort", "distorted_image"]
 
 UNDISTORT_TOL = 1e-13
 """Newton's stop: the re-distorted point within this of its target (normalised units; 1e-13 is
@@ -168,3 +170,45 @@ def _newton(target: np.ndarray, c: np.ndarray, steps: int, start: np.ndarray | N
         x = np.where(ok, x - dx, x)
         y = np.where(ok, y - dy, y)
     return np.column_stack([x, y])
+
+
+def distorted_image(ideal, camera, pad: int, factor: int, ideal_pixels=None) -> np.ndarray:
+    """The image a distorted camera takes of what an ideal camera's finer image shows.
+
+    Parameters
+    ----------
+    ideal : (factor·(H + 2 pad), factor·(W + 2 pad), C) uint8 sRGB, the view of `camera` without its distortion
+        on a canvas `pad` px wider each way, `factor` times finer: its pixel I lies at the canvas coordinate
+        (I + 0.5) / factor − 0.5 (the image's pixel u at u + pad)
+    camera : PinholeCamera with `distortion`, resolution (W, H)
+    ideal_pixels : callable (N, 2) distorted pixels → (N, 2) ideal pixels of the same K, or None for this module's
+        `undistort` (a test passes OpenCV's `cv2.undistortPoints` to check ours against it)
+
+    Returns
+    -------
+    (H, W, C) uint8 sRGB: each pixel the mean, in linear light, of factor² points spread evenly over it, each taken
+    to its ideal point and sampled there bilinearly.
+    """
+    import cv2
+
+    from .render import linear_to_srgb8
+    if ideal_pixels is None:
+        def ideal_pixels(px):
+            Kinv = np.linalg.inv(camera.K)
+            xy, _ = undistort(px @ Kinv[:2, :2].T + Kinv[:2, 2], camera.distortion)
+            return xy @ camera.K[:2, :2].T + camera.K[:2, 2]
+    w, h = camera.resolution
+    expected = (factor * (h + 2 * pad), factor * (w + 2 * pad))
+    if ideal.shape[:2] != expected:
+        raise RaytraceError(f"ideal: expected an image of {expected[1]}×{expected[0]} px (factor {factor}, pad {pad} "
+                            f"over {w}×{h}), got {ideal.shape[1]}×{ideal.shape[0]}")
+    levels = np.arange(256) / 255.0
+    linear = np.where(levels <= 0.04045, levels / 12.92, ((levels + 0.055) / 1.055) ** 2.4).astype(np.float32)[ideal]
+    uu, vv = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
+    acc = np.zeros((h, w, ideal.shape[2]))
+    for i in range(factor):
+        for j in range(factor):
+            px = np.column_stack([(uu - 0.5 + (i + 0.5) / factor).ravel(), (vv - 0.5 + (j + 0.5) / factor).ravel()])
+            m = (factor * (np.asarray(ideal_pixels(px)).reshape(h, w, 2) + pad + 0.5) - 0.5).astype(np.float32)
+            acc += cv2.remap(linear, m[..., 0], m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+    return linear_to_srgb8(acc / factor ** 2)

@@ -163,3 +163,38 @@ def test_a_point_beyond_the_fold_stays_finite_and_reports_its_residual():
     xy, residual = undistort(np.array([[0.6, 0.0], [0.0, 0.9], [0.3, 0.0]]), c)
     assert np.all(np.isfinite(xy)) and np.all(np.isfinite(residual))
     assert residual[0] > 1e-3 and residual[1] > 1e-3 and residual[2] <= 1e-13
+
+
+def _srgb_decode(v):
+    v = np.asarray(v, dtype=np.float64) / 255.0
+    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
+
+
+def test_distorted_image_with_no_distortion_averages_each_pixels_block_in_linear_light():
+    """With the identity map, pixel (u, v) averages the factor × factor block of the finer canvas that covers it
+    (the canvas pixel I at (I + 0.5) / factor − 0.5 − pad), in linear light."""
+    from raytrace.lens import distorted_image
+    from raytrace.render import linear_to_srgb8
+    cam = PinholeCamera.from_look_at((12, 8), 20.0, None, [0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    f, pad = 3, 2
+    hi = np.random.default_rng(7).integers(0, 256, (f * (8 + 2 * pad), f * (12 + 2 * pad), 3)).astype(np.uint8)
+    got = distorted_image(hi, cam, pad, f, lambda px: px)
+    block = _srgb_decode(hi[f * pad:f * (pad + 8), f * pad:f * (pad + 12)]).reshape(8, f, 12, f, 3).mean(axis=(1, 3))
+    np.testing.assert_array_equal(got, linear_to_srgb8(block))
+
+
+def test_distorted_image_through_our_undistortion_is_through_opencvs():
+    from raytrace.lens import distorted_image
+    cam = PinholeCamera.from_look_at((64, 48), 50.0, None, [0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0],
+                                     [-0.2, 0.05, 1e-3, -1e-3])
+    f, pad = 2, 10
+    yy, xx = np.mgrid[0:f * (48 + 2 * pad), 0:f * (64 + 2 * pad)]
+    hi = np.dstack([(xx * 7 + yy * 3) % 256, (xx * 2 + yy * 5) % 256, (xx * yy) % 256]).astype(np.uint8)
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-12)
+    opencv = distorted_image(hi, cam, pad, f, lambda px: cv2.undistortPoints(
+        px.reshape(-1, 1, 2), cam.K, cam.distortion, P=cam.K, criteria=crit).reshape(-1, 2))
+    ours = distorted_image(hi, cam, pad, f)
+    assert np.abs(ours.astype(int) - opencv).max() <= 1
+    assert np.abs(ours.astype(int) - distorted_image(hi, cam, pad, f, lambda px: px)).max() > 20  # it moved them
+    with pytest.raises(RaytraceError, match=r"ideal: expected an image of 168×136 px \(factor 2, pad 10 over 64×48\)"):
+        distorted_image(hi[:-1], cam, pad, f)
