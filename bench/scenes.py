@@ -115,11 +115,11 @@ def _overlaps(a, b) -> bool:
 
 
 def _draw_scene(rng, index: int, kind: str, resolution, same_size: bool = False,
-                standing: bool = False) -> BenchScene | None:
+                standing: bool = False, distance=(4.0, 7.0)) -> BenchScene | None:
     from raytrace.scene import Cube
     w, h = resolution
     R = float(rng.uniform(0.075, 0.15))
-    D = float(R * rng.uniform(4.0, 7.0))
+    D = float(R * rng.uniform(*distance))
     fill = rng.uniform(0.55, 0.8)  # fraction of the image width the mirror spans
     f = float(fill * w * math.sqrt(D * D - R * R) / (2 * R))
     cam_h = float(rng.uniform(-0.5, 0.5) * R)
@@ -170,11 +170,13 @@ def _draw_scene(rng, index: int, kind: str, resolution, same_size: bool = False,
     return BenchScene(name=f"s{index:02d}", kind=kind, setup=setup, turn_deg=tuple(turns), same_size=same_size)
 
 
-def make_scenes(n: int = 24, seed: int = 5, standing: bool = False) -> list[BenchScene]:
+def make_scenes(n: int = 24, seed: int = 5, standing: bool = False, distance=(4.0, 7.0)) -> list[BenchScene]:
     """`n` seeded scenes alternating "axis" / "turned"; each kind cycles through RESOLUTIONS (every fourth scene is 2048×1536).
 
     Every third scene (index 2, 5, 8, ...) has cubes of one common size, for `shape_prior`. With `standing`, every
-    cube stands on the floor the mirror stands on (its lower end; the scene has the ground plane there).
+    cube stands on the floor the mirror stands on (its lower end; the scene has the ground plane there). The camera
+    stands `distance` (a range, in mirror radii) from the axis: the default 4–7 sees the mirror through a lens about
+    30° across; nearer, through a wider one (the mirror spans 55–80 % of the image width either way).
 
     A draw whose cubes cannot all be
     placed is discarded and redrawn (with the same generator, so the list is reproducible).
@@ -186,7 +188,7 @@ def make_scenes(n: int = 24, seed: int = 5, standing: bool = False) -> list[Benc
         kind = "axis" if len(out) % 2 == 0 else "turned"
         j = len(out)
         res = RESOLUTIONS[(j // 2 + 2 * (j % 2)) % len(RESOLUTIONS)]
-        s = _draw_scene(rng, len(out), kind, res, same_size=j % 3 == 2, standing=standing)
+        s = _draw_scene(rng, len(out), kind, res, same_size=j % 3 == 2, standing=standing, distance=distance)
         i += 1
         if s is not None:
             out.append(s)
