@@ -314,6 +314,7 @@ class UncertaintyConfig:
     mirror_radius: float = 0.0  # metres
     mirror_center: float = 0.0  # metres, each coordinate
     mirror_axis_deg: float = 0.0  # the axis's tilt about each of two directions square to it
+    distortion: tuple = ()  # each of [camera] distortion's coefficients (k1, k2, p1, p2, k3, k4, k5, k6), up to 8
 
     KEYS: ClassVar[tuple] = ("camera_position", "camera_rotation_deg", "focal_px", "principal_px", "mirror_radius",
                              "mirror_center", "mirror_axis_deg")
@@ -322,20 +323,30 @@ class UncertaintyConfig:
     def from_dict(cls, d: dict, source: str = "<dict>", prefix: str = "uncertainty.") -> "UncertaintyConfig":
         w = _Where(source, prefix)
         d = _table(d, w, prefix.rstrip("."))
-        _no_unknown(d, set(cls.KEYS), w)
+        _no_unknown(d, {*cls.KEYS, "distortion"}, w)
         values = {key: _number(d, key, w, default=0.0) for key in cls.KEYS}
         for key, value in values.items():
             if value < 0:
                 raise w.error(key, "a σ >= 0", value)
+        if "distortion" in d:
+            x = d["distortion"]
+            if not isinstance(x, list) or not 1 <= len(x) <= 8 or not all(_is_number(v) and math.isfinite(v) and v >= 0
+                                                                          for v in x):
+                raise w.error("distortion", "a list of 1 to 8 σ >= 0, one per coefficient of camera.distortion "
+                              "(k1, k2, p1, p2, k3, k4, k5, k6)", x)
+            values["distortion"] = tuple(float(v) for v in x)
         return cls(**values)
 
     def to_dict(self) -> dict:
-        return {key: getattr(self, key) for key in self.KEYS if getattr(self, key) != 0.0}
+        d = {key: getattr(self, key) for key in self.KEYS if getattr(self, key) != 0.0}
+        if self.distortion:
+            d["distortion"] = list(self.distortion)
+        return d
 
     def build(self):
         """The `depth.setup_error.SetupStd` of this table."""
         from depth.setup_error import SetupStd
-        return SetupStd(**{key: getattr(self, key) for key in self.KEYS})
+        return SetupStd(**{key: getattr(self, key) for key in self.KEYS}, distortion=self.distortion)
 
 
 def euler_xyz_matrix(angles_deg) -> np.ndarray:

@@ -1,7 +1,7 @@
 """The setup's own uncertainty, carried into each cube's σ.
 
-A setup file's numbers are measured: the camera's place and turn, its focal lengths and principal point, the
-mirror's radius, place and axis. `exact`'s σ counts the edges' noise alone, as if the setup were exact. A
+A setup file's numbers are measured: the camera's place and turn, its focal lengths, principal point and lens
+distortion, the mirror's radius, place and axis. `exact`'s σ counts the edges' noise alone, as if the setup were exact. A
 setup off by a millimetre moves every edge point's reflected ray, and with them the fitted cube.
 
 `exact`, asked for them (`estimate_face(..., ray_slopes=True)`), gives how its reading moves per unit of each
@@ -38,6 +38,8 @@ class SetupStd:
     mirror_radius : metres
     mirror_center : metres, each coordinate of the mirror's centre
     mirror_axis_deg : degrees, the axis's tilt about each of two directions square to it
+    distortion : the σ of each of the lens's distortion coefficients in OpenCV's order (k1, k2, p1, p2, k3, k4, k5,
+        k6; `raytrace.lens`), up to 8 (those left out 0); about a lens without distortion, the ideal one's
     """
 
     camera_position: float = 0.0
@@ -47,9 +49,19 @@ class SetupStd:
     mirror_radius: float = 0.0
     mirror_center: float = 0.0
     mirror_axis_deg: float = 0.0
+    distortion: tuple = ()
 
     def __post_init__(self):
+        d = self.distortion
+        if not isinstance(d, (tuple, list, np.ndarray)) or len(d) > 8 or not all(
+                not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating)) and np.isfinite(v)
+                and v >= 0 for v in d):
+            raise DepthError(f"setup_std.distortion: expected up to 8 σ >= 0 (k1, k2, p1, p2, k3, k4, k5, k6), "
+                             f"got {d!r}")
+        object.__setattr__(self, "distortion", tuple(float(v) for v in d))
         for f in fields(self):
+            if f.name == "distortion":
+                continue
             value = getattr(self, f.name)
             if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or not (
                     np.isfinite(value) and value >= 0):
@@ -57,8 +69,20 @@ class SetupStd:
             object.__setattr__(self, f.name, float(value))
 
     def items(self) -> list:
-        """(name, σ) of the parameters whose σ is not 0."""
-        return [(f.name, getattr(self, f.name)) for f in fields(self) if getattr(self, f.name) > 0]
+        """(name, σ) of the parameters whose σ is not 0 (the distortion's, a list of its coefficients' σ)."""
+        return [(f.name, list(self.distortion) if f.name == "distortion" else getattr(self, f.name))
+                for f in fields(self) if (any(self.distortion) if f.name == "distortion" else getattr(self, f.name) > 0)]
+
+    def components(self) -> list:
+        """(name, k, σ) of each component with a σ, each moved on its own by `moved`: a number's σ for each of its
+        components (`_COMPONENTS`), the distortion's own for each coefficient."""
+        out = []
+        for name, sigma in self.items():
+            if name == "distortion":
+                out += [(name, k, s) for k, s in enumerate(sigma) if s > 0]
+            else:
+                out += [(name, k, sigma) for k in range(_COMPONENTS[name])]
+        return out
 
 
 def moved(camera, mirror, name: str, k: int, delta: float):
@@ -74,6 +98,15 @@ def moved(camera, mirror, name: str, k: int, delta: float):
         K = camera.K.copy()
         K[k, k if name == "focal_px" else 2] += delta
         return replace(camera, K=K), mirror
+    if name == "distortion":
+        from raytrace.errors import RaytraceError
+        coeffs = np.zeros(8) if camera.distortion is None else camera.distortion.copy()
+        coeffs[k] += delta
+        try:
+            return replace(camera, distortion=coeffs), mirror
+        except RaytraceError as exc:
+            raise DepthError(f"setup_std.distortion: coefficient {k} moved by {delta:+g} folds the lens over the "
+                             f"image ({exc})") from None
     if name == "mirror_radius":
         return camera, replace(mirror, radius=mirror.radius + delta)
     if name == "mirror_center":
@@ -91,9 +124,8 @@ _COMPONENTS = {"camera_position": 3, "camera_rotation_deg": 3, "focal_px": 2, "p
 def drawn(camera, mirror, std: SetupStd, rng):
     """(camera, mirror) with each component of each number of `std` drawn off by N(0, its σ) (`rng`, a numpy
     Generator): a setup as it might have been measured."""
-    for name, sigma in std.items():
-        for k in range(_COMPONENTS[name]):
-            camera, mirror = moved(camera, mirror, name, k, rng.normal(0.0, sigma))
+    for name, k, sigma in std.components():
+        camera, mirror = moved(camera, mirror, name, k, rng.normal(0.0, sigma))
     return camera, mirror
 
 
@@ -134,18 +166,17 @@ def setup_effects(est: CubeEstimate, camera, mirror, std: SetupStd) -> list:
         return move
 
     out = []
-    for name, sigma in std.items():
-        for k in range(_COMPONENTS[name]):
-            plus, minus = moved(camera, mirror, name, k, sigma), moved(camera, mirror, name, k, -sigma)
-            move = reading_move(0, name, k, sigma, plus, minus)
-            if est.common_size_from is not None:  # the common size moves as the sizes it was fused from
-                move += _along_size(est, sum(w * reading_move(j, name, k, sigma, plus, minus)[3]
-                                             for j, (_, w) in enumerate(est.common_size_from, start=1)))
-            if est.on_floor is not None:
-                move += _floor_move(est, mirror, plus[1], minus[1], move)
-            depths = [m.distance_to_axis((est.center + sgn * move[:3])[None])[0]
-                      for sgn, (_, m) in ((1.0, plus), (-1.0, minus))]
-            out.append((name, k, np.r_[move, 0.5 * (depths[0] - depths[1])]))
+    for name, k, sigma in std.components():
+        plus, minus = moved(camera, mirror, name, k, sigma), moved(camera, mirror, name, k, -sigma)
+        move = reading_move(0, name, k, sigma, plus, minus)
+        if est.common_size_from is not None:  # the common size moves as the sizes it was fused from
+            move += _along_size(est, sum(w * reading_move(j, name, k, sigma, plus, minus)[3]
+                                         for j, (_, w) in enumerate(est.common_size_from, start=1)))
+        if est.on_floor is not None:
+            move += _floor_move(est, mirror, plus[1], minus[1], move)
+        depths = [m.distance_to_axis((est.center + sgn * move[:3])[None])[0]
+                  for sgn, (_, m) in ((1.0, plus), (-1.0, minus))]
+        out.append((name, k, np.r_[move, 0.5 * (depths[0] - depths[1])]))
     return out
 
 

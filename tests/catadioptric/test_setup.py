@@ -154,6 +154,13 @@ def test_the_uncertainty_table_is_optional_and_round_trips(valid_setup, write_se
     assert load_setup(p) == s and "[uncertainty]" in p.read_text()
     std = s.uncertainty.build()
     assert dict(std.items()) == {"camera_position": 0.001, "focal_px": 5.0, "mirror_axis_deg": 0.1}
+    valid_setup["uncertainty"]["distortion"] = [0.01, 0.0, 2e-4]  # the σ of k1, k2, p1
+    s = load_setup(write_setup(valid_setup))
+    save_setup(s, p)
+    assert load_setup(p) == s and s.uncertainty.distortion == (0.01, 0.0, 2e-4)
+    assert dict(s.uncertainty.build().items())["distortion"] == [0.01, 0.0, 2e-4]
+    assert [(n, k) for n, k, _ in s.uncertainty.build().components() if n == "distortion"] == [("distortion", 0),
+                                                                                               ("distortion", 2)]
 
 
 @pytest.mark.parametrize("table, message", [
@@ -162,6 +169,9 @@ def test_the_uncertainty_table_is_optional_and_round_trips(valid_setup, write_se
     ({"camera_position": math.inf}, "uncertainty.camera_position: expected a finite number"),
     ({"camera_position": [0.001, 0.001, 0.001]}, "uncertainty.camera_position: expected a finite number"),
     ({"focal": 1.0}, "uncertainty.focal: unknown key"),
+    ({"distortion": [0.01, -0.001]}, "uncertainty.distortion: expected a list of 1 to 8 σ >= 0"),
+    ({"distortion": [0.0] * 9}, "uncertainty.distortion: expected a list of 1 to 8 σ >= 0"),
+    ({"distortion": 0.01}, "uncertainty.distortion: expected a list of 1 to 8 σ >= 0"),
     (0.1, "uncertainty: expected a table"),
 ])
 def test_a_bad_uncertainty_table_gives_a_one_line_error_naming_file_and_key(valid_setup, write_setup, table, message):

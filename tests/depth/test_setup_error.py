@@ -36,7 +36,14 @@ def depth_of(est, mirror):
 
 CASES = [("camera_position", 0, 0.002), ("camera_position", 2, 0.002), ("camera_rotation_deg", 1, 0.1),
          ("focal_px", 0, 10.0), ("focal_px", 1, 10.0), ("principal_px", 0, 2.0), ("mirror_radius", 0, 0.0005),
-         ("mirror_center", 2, 0.002), ("mirror_axis_deg", 0, 0.05), ("mirror_axis_deg", 1, 0.05)]
+         ("mirror_center", 2, 0.002), ("mirror_axis_deg", 0, 0.05), ("mirror_axis_deg", 1, 0.05),
+         ("distortion", 0, 0.1), ("distortion", 2, 0.002)]
+
+
+def std_of(name, k, delta) -> SetupStd:
+    """A `SetupStd` whose only σ is `delta` on `name` (on its k-th coefficient for the distortion's)."""
+    return SetupStd(distortion=tuple(delta * (i == k) for i in range(k + 1))) if name == "distortion" else \
+        SetupStd(**{name: delta})
 
 
 @pytest.mark.parametrize("yaw", [0.0, 15.0])
@@ -49,7 +56,7 @@ def test_the_first_order_moves_match_whole_fits_through_the_moved_setup(rig, yaw
     meas = rig.measure(cube, n=24)
     est = read(rig, meas, slopes=True)
     for name, k, delta in CASES:
-        (predicted,) = [e for n, kk, e in setup_effects(est, rig.camera, rig.mirror, SetupStd(**{name: delta}))
+        (predicted,) = [e for n, kk, e in setup_effects(est, rig.camera, rig.mirror, std_of(name, k, delta))
                         if kk == k]
         ends = [moved(rig.camera, rig.mirror, name, k, sgn * delta) for sgn in (1.0, -1.0)]
         fits = [read(rig, meas, *end) for end in ends]
@@ -125,6 +132,13 @@ def test_a_setup_taken_as_exact_adds_nothing_and_bad_sigmas_are_refused(rig):
             SetupStd(focal_px=bad)
     with pytest.raises(DepthError, match="carried through method exact's fit alone"):
         setup_effects(replace(est, ray_slopes=None), rig.camera, rig.mirror, SetupStd(focal_px=1.0))
+    for bad in ((-0.1,), (0.1, float("nan")), (0.0,) * 9, 0.1, (True,)):
+        with pytest.raises(DepthError, match=r"setup_std.distortion: expected up to 8 σ >= 0 \(k1, k2, p1, p2"):
+            SetupStd(distortion=bad)
+    assert SetupStd(distortion=(0.0, 0.0)).items() == [] and SetupStd(distortion=(0.0, 0.0)).components() == []
+    with pytest.raises(DepthError, match="setup_std.distortion: coefficient 0 moved by -4 folds the lens over the "
+                                         "image"):
+        setup_effects(est, rig.camera, rig.mirror, SetupStd(distortion=(4.0,)))
 
 
 def test_each_number_moves_what_its_name_says(rig):
@@ -155,6 +169,12 @@ def test_each_number_moves_what_its_name_says(rig):
         _, m = moved(cam, mir, "mirror_axis_deg", k, 0.5)
         assert np.degrees(np.arccos(m.axis @ mir.axis)) == pytest.approx(0.5)
         assert abs((m.axis - mir.axis) @ mir.frame[k]) < 1e-12  # tilted about frame[k], so not toward it
+    c, _ = moved(cam, mir, "distortion", 1, 0.02)  # from an ideal lens
+    assert np.array_equal(c.distortion, [0, 0.02, 0, 0, 0, 0, 0, 0]) and np.array_equal(c.K, cam.K)
+    bent = replace(cam, distortion=[-0.1, 0.03, 1e-3, 0.0, 0.01])
+    c, _ = moved(bent, mir, "distortion", 4, -0.005)
+    assert np.allclose(c.distortion - bent.distortion, [0, 0, 0, 0, -0.005, 0, 0, 0], atol=1e-15)
+    assert np.array_equal(bent.distortion, [-0.1, 0.03, 1e-3, 0.0, 0.01, 0, 0, 0])  # the camera moved from, kept
 
 
 def test_reconstruct_refuses_a_setup_sigma_it_cannot_carry(rig):
@@ -191,7 +211,7 @@ def test_a_cube_on_the_floor_moves_with_the_setup_and_the_floor_with_the_mirror(
     est = on_floor(rig.camera, rig.mirror, slopes=True)
     assert abs(depth_of(est, rig.mirror) - rig.depth(cube)) < 1e-6 and est.on_floor is not None
     for name, k, delta in CASES + [("mirror_center", 1, 0.002)]:  # (the mirror, and the floor, up its axis)
-        (predicted,) = [e for n, kk, e in setup_effects(est, rig.camera, rig.mirror, SetupStd(**{name: delta}))
+        (predicted,) = [e for n, kk, e in setup_effects(est, rig.camera, rig.mirror, std_of(name, k, delta))
                         if kk == k]
         ends = [moved(rig.camera, rig.mirror, name, k, sgn * delta) for sgn in (1.0, -1.0)]
         fits = [on_floor(*end) for end in ends]
@@ -222,7 +242,7 @@ def test_cubes_of_one_size_move_with_the_common_size_the_setup_moves(rig):
         ends = [moved(rig.camera, rig.mirror, name, k, sgn * delta) for sgn in (1.0, -1.0)]
         fits = [joint(*end) for end in ends]
         for i, est in enumerate(ests):
-            (predicted,) = [e for n, kk, e in setup_effects(est, rig.camera, rig.mirror, SetupStd(**{name: delta}))
+            (predicted,) = [e for n, kk, e in setup_effects(est, rig.camera, rig.mirror, std_of(name, k, delta))
                             if kk == k]
             actual = np.r_[0.5 * (fits[0][i].center - fits[1][i].center), 0.5 * (fits[0][i].size - fits[1][i].size),
                            0.5 * (depth_of(fits[0][i], ends[0][1]) - depth_of(fits[1][i], ends[1][1]))]
