@@ -18,8 +18,8 @@ reads the image), `undistorted` (the ideal camera's own image through it). Per r
 the centre error ‖ĉ − c‖ / (distance of c to the axis) (median, max, over 3 %), depth within 1 / 2 / 3 σ; the
 time of `ours, known` over `ours, ignored` (the same image in one process: the two readings' work differs where they
 see different faces), the work the lens alone adds (the image read through the ideal camera and through one whose
-lens bends by 1e-12, every ray undistorted and the reading the same but for rounding; alternated, best of 2), and how far the
-distortion moves the faces' corners.
+lens bends by 1e-12, every ray undistorted and the reading the same but for rounding; alternated, best of 2), and
+how far the distortion moves the faces' corners.
 
 Run: `python -m bench distortion [--quick]` (in `make bench`); renders are cached in bench/out/renders/, the result
 goes to bench/out/distortion.json.

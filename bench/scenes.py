@@ -171,7 +171,8 @@ def _draw_scene(rng, index: int, kind: str, resolution, same_size: bool = False,
 
 
 def make_scenes(n: int = 24, seed: int = 5, standing: bool = False, distance=(4.0, 7.0)) -> list[BenchScene]:
-    """`n` seeded scenes alternating "axis" / "turned"; each kind cycles through RESOLUTIONS (every fourth scene is 2048×1536).
+    """`n` seeded scenes alternating "axis" / "turned"; each kind cycles through RESOLUTIONS (every fourth scene is
+    2048×1536).
 
     Every third scene (index 2, 5, 8, ...) has cubes of one common size, for `shape_prior`. With `standing`, every
     cube stands on the floor the mirror stands on (its lower end; the scene has the ground plane there). The camera

@@ -1,8 +1,8 @@
 """The setup's own uncertainty, carried into each cube's σ.
 
 A setup file's numbers are measured: the camera's place and turn, its focal lengths, principal point and lens
-distortion, the mirror's radius, place and axis. `exact`'s σ counts the edges' noise alone, as if the setup were exact. A
-setup off by a millimetre moves every edge point's reflected ray, and with them the fitted cube.
+distortion, the mirror's radius, place and axis. `exact`'s σ counts the edges' noise alone, as if the setup were
+exact. A setup off by a millimetre moves every edge point's reflected ray, and with them the fitted cube.
 
 `exact`, asked for them (`estimate_face(..., ray_slopes=True)`), gives how its reading moves per unit of each
 edge point's ray (`CubeEstimate.ray_slopes`: the pose re-solved to first order, as `size_slope` re-solves it as
@@ -70,8 +70,10 @@ class SetupStd:
 
     def items(self) -> list:
         """(name, σ) of the parameters whose σ is not 0 (the distortion's, a list of its coefficients' σ)."""
+        def has(name):
+            return any(self.distortion) if name == "distortion" else getattr(self, name) > 0
         return [(f.name, list(self.distortion) if f.name == "distortion" else getattr(self, f.name))
-                for f in fields(self) if (any(self.distortion) if f.name == "distortion" else getattr(self, f.name) > 0)]
+                for f in fields(self) if has(f.name)]
 
     def components(self) -> list:
         """(name, k, σ) of each component with a σ, each moved on its own by `moved`: a number's σ for each of its

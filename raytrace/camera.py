@@ -25,8 +25,8 @@ from ._validate import (
 from .errors import RaytraceError
 from .lens import as_distortion, distort, distortion_jacobian, undistort
 
-__all__ = ["PinholeCamera", "distortion_fold", "XSlitCamera", "PushbroomCamera", "sample_offsets", "pixel_sample_offsets",
-           "pixel_grid"]
+__all__ = ["PinholeCamera", "distortion_fold", "XSlitCamera", "PushbroomCamera", "sample_offsets",
+           "pixel_sample_offsets", "pixel_grid"]
 
 
 def pixel_grid(resolution: tuple[int, int]) -> np.ndarray:
