@@ -97,9 +97,10 @@ def distortion_jacobian(xy, coeffs) -> np.ndarray:
 
 
 def undistort(xy_d, coeffs) -> tuple[np.ndarray, np.ndarray]:
-    """The ideal normalised points whose distortion is `xy_d`: Newton's method from x_d / g(r_d²), each
-    point's step taken only where it brings the point nearer its target (so a point with no ideal point,
-    beyond a fold of the lens's map, stays finite and reports its residual).
+    """The ideal normalised points whose distortion is `xy_d`: `_PLAIN_STEPS` Newton steps from x_d / g(r_d²),
+    then, for the points still short of the tolerance, one step at a time, each taken only where it brings the
+    point nearer its target (a point with no ideal point, beyond a fold of the lens's map, reports a residual
+    over the tolerance).
 
     Parameters
     ----------
