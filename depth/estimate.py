@@ -402,7 +402,9 @@ class CubeEstimate:
     `up` (3,), how far the cube's bottom moves per metre of its size) of the floor the size was chosen to stand it
     on. common_size_from (``exact_shape_prior`` asked for ray slopes only): per size the common size was fused
     from, (its reading's `ray_slopes`, its weight in the mean): `depth.setup_error` moves the common size with
-    them.
+    them. front_face_corners (``exact`` only): (4, 3) world metres, the front face's corners as the fitted pose puts
+    them (its in-plane turn too): (−½, −½), (−½, ½), (½, ½), (½, −½) of the edge length along its vertical and
+    horizontal.
     """
 
     method: str
@@ -423,6 +425,7 @@ class CubeEstimate:
     setup_std: dict | None = None
     on_floor: tuple | None = field(default=None, repr=False, compare=False)
     common_size_from: tuple | None = field(default=None, repr=False, compare=False)
+    front_face_corners: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def __bool__(self) -> bool:
         return True
@@ -1588,7 +1591,10 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
     rot, c, s = unpack(x_best)
     if not (np.all(np.isfinite(x_best)) and np.all(np.isfinite(c)) and np.isfinite(s) and s > 0):
         return FailedEstimate("exact", "least squares diverged")
-    normal = _square_axes(rot, base)[2]
+    axes = _square_axes(rot, base)
+    normal = axes[2]
+    # the front face's corners as its pose puts them (its vertical and horizontal edges: the in-plane turn too)
+    face_corners = c + s * (_VERTS[list(_FRONT), :2] @ axes[:2])
     r = resid(x_best)[:len(sid)]  # the edge points' misfit
     rms = _rms(r)
     side_misfits = tuple(_side_misfit(r[sid == k]) for k in range(4))
@@ -1754,7 +1760,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         return CubeEstimate(method="exact", center=f0[:3], size=float(s), z=float(f0[4]), front_face_center=c,
                             normal=normal, aspect_ratio=start.aspect_ratio, std=std,
                             xslit=start.xslit, rms_residual=rms, side_misfits=side_misfits, size_slope=slope,
-                            first_order_cov=jac_best @ cov @ jac_best.T)
+                            first_order_cov=jac_best @ cov @ jac_best.T, front_face_corners=face_corners)
 
     @np.errstate(over="ignore", invalid="ignore", divide="ignore")  # as `_exact`'s, when called after it
     def completed():
