@@ -6,7 +6,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from depth.estimate import CubeEstimate
+from depth.estimate import CubeEstimate, estimate_face
 from depth.reconstruct import _cube_vertices, _direct_view_reason, _inside_mirror_reason
 from raytrace.truth import mirror_mask
 
@@ -534,3 +534,26 @@ def test_a_floor_the_arguments_cannot_have_is_refused(rig, kwargs, match):
     image = np.zeros((rig.camera.resolution[1], rig.camera.resolution[0], 3), np.uint8)
     with pytest.raises(DepthError, match=match):
         reconstruct(image, rig.camera, rig.mirror, **kwargs)
+
+
+@pytest.mark.parametrize("yaw, roll, merged", [(0.0, 0.0, False), (20.0, 0.0, True), (10.0, 12.0, False)])
+def test_the_front_face_corners_reported_are_where_the_fitted_pose_puts_them(rig, yaw, roll, merged):
+    """`exact`'s pose gives its front face's corners (`CubeEstimate.front_face_corners`); reflected by the exact
+    law, they are the true face's to 0.01 px on the rig's exact edges: a face facing the axis, one turned 20° whose
+    side face merged with it (the outline its contour), one turned in its own plane by 12°. Reported in the order of
+    the measured outline's corners, even where that outline is the silhouette's, pixels beyond the front face (here
+    its left corners 6 px further left); another estimator's reading, without such corners, keeps the measured ones."""
+    from depth.reconstruct import _front_face_px
+    from raytrace.truth import cube_truth
+    cube = rig.cube(0.5, 15.0, yaw_deg=yaw, roll_deg=roll)
+    meas = rig.measure(cube, n=30, merged=merged)
+    est = estimate_face(rig.rays, meas, "exact", up=rig.mirror.axis)
+    assert est, est.reason
+    truth = np.asarray(cube_truth(rig.camera, rig.mirror, cube)["front_face_corners_px"])
+    order = np.argsort(np.arctan2(*(truth - truth.mean(axis=0)).T[::-1]))  # any order the outline may have
+    silhouette = truth[order] + np.where(truth[order][:, :1] < truth[:, 0].mean(), [-6.0, 0.0], [0.0, 0.0])
+    got = _front_face_px(est, rig.camera, rig.mirror, silhouette)
+    np.testing.assert_allclose(got, truth[order], atol=0.01)
+    ddar = estimate_face(rig.rays, meas, "ddar")
+    assert ddar.front_face_corners is None
+    assert _front_face_px(ddar, rig.camera, rig.mirror, silhouette) is silhouette
