@@ -501,10 +501,11 @@ def calibration(result: dict, log=print) -> dict:
 
 
 def corner_stats(result: dict, log=print) -> dict:
-    """Corner error (px) of the measured front faces vs truth, per variant (method-independent; from `exact`)."""
+    """Corner error (px) of `exact`'s reported front faces vs truth, per variant (since the ninety-first session where
+    its pose puts them, `depth.reconstruct._front_face_px`; the measured outline's corners before)."""
     out = {}
     log("")
-    log("measured front-face corners vs truth (px, max over 4 corners per face): median / 90th pct / max")
+    log("exact's reported front-face corners vs truth (px, max over 4 corners per face): median / 90th pct / max")
     for v in VARIANTS + ("mitsuba",):
         e = [c["corner_err_px"] for r in result["records"] if r["method"] == "exact" and r["variant"] == v
              for c in r["cubes"] if c["found"]]
