@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -165,9 +165,8 @@ class CameraConfig:
         if cam.distortion is not None:
             from raytrace.camera import distortion_fold
             from raytrace.lens import as_distortion
-            (fx, fy), (cx, cy) = cam.focal_px, cam.principal
-            fold = distortion_fold(cam.resolution, [[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]],
-                                   as_distortion(cam.distortion))
+            ideal = replace(cam, distortion=None).build()  # (the lens's check, named by this file and key)
+            fold = distortion_fold(ideal.resolution, ideal.K, as_distortion(cam.distortion))
             if fold is not None:
                 raise w.error("distortion", "coefficients whose distortion is one-to-one over the image (these fold "
                               f"near pixel ({fold[0]:.0f}, {fold[1]:.0f}))", list(cam.distortion))

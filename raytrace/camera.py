@@ -122,12 +122,17 @@ def distortion_fold(resolution, K, distortion) -> tuple[float, float] | None:
                          np.column_stack([-1.0 + (w + 1.0) * edge, np.full_like(edge, float(h))]),
                          np.column_stack([np.full_like(edge, -1.0), -1.0 + (h + 1.0) * edge]),
                          np.column_stack([np.full_like(edge, float(w)), -1.0 + (h + 1.0) * edge])])
-    Kinv = np.linalg.inv(np.asarray(K, dtype=np.float64))
-    xy, err = undistort(px @ Kinv[:2, :2].T + Kinv[:2, 2], distortion)
+    xy, err = undistort(_normalized(K, px), distortion)
     J = distortion_jacobian(xy, distortion)
     det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
     bad = ~((err <= 1e-10) & (det > 0))
     return tuple(float(v) for v in px[np.argmax(bad)]) if bad.any() else None
+
+
+def _normalized(K, px: np.ndarray) -> np.ndarray:
+    """K⁻¹ (u, v, 1)'s first two coordinates, (N, 2): the (distorted) normalised points of pixels (N, 2)."""
+    Kinv = np.linalg.inv(np.asarray(K, dtype=np.float64))
+    return px @ Kinv[:2, :2].T + Kinv[:2, 2]
 
 
 def _normalize_rows(v: np.ndarray) -> np.ndarray:
@@ -183,10 +188,13 @@ class PinholeCamera:
                                 f"it folds near pixel ({fold[0]:.0f}, {fold[1]:.0f}) "
                                 f"(coefficients {self.distortion.tolist()})")
 
-    def _normalized_distorted(self, px: np.ndarray) -> np.ndarray:
-        """K⁻¹ (u, v, 1)'s first two coordinates, (N, 2): the distorted normalised points of pixels."""
-        Kinv = np.linalg.inv(self.K)
-        return px @ Kinv[:2, :2].T + Kinv[:2, 2]
+    def undistorted_pixels(self, pixels) -> np.ndarray:
+        """Where this camera without its distortion images what it images at `pixels` (N, 2): (N, 2) pixels."""
+        px = as_points(pixels, "pixels", width=2)
+        if self.distortion is None:
+            return px
+        xy, _ = undistort(_normalized(self.K, px), self.distortion)
+        return xy @ self.K[:2, :2].T + self.K[:2, 2]
 
     @classmethod
     def from_look_at(cls, resolution, focal_px, principal_px=None, position=None, look_at=None, up=(0.0, 1.0, 0.0),
@@ -260,7 +268,7 @@ class PinholeCamera:
             Kinv = np.linalg.inv(self.K)
             d_cam = px @ Kinv[:, :2].T + Kinv[:, 2]
         else:
-            xy, _ = undistort(self._normalized_distorted(px), self.distortion)
+            xy, _ = undistort(_normalized(self.K, px), self.distortion)
             d_cam = np.column_stack([xy, np.ones(len(xy))])
         d = _normalize_rows(d_cam @ self.R)
         return np.broadcast_to(self.position, d.shape).copy(), d

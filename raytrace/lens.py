@@ -49,13 +49,28 @@ def as_distortion(value, name: str = "distortion") -> np.ndarray | None:
     return np.concatenate([d, np.zeros(8 - d.size)])
 
 
-def _terms(xy: np.ndarray, c: np.ndarray):
+def _radial(r2: np.ndarray, c) -> tuple:
+    """The radial factor's numerator and denominator at r²: g = a / b."""
+    k1, k2, _, _, k3, k4, k5, k6 = c
+    return 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3)), 1.0 + r2 * (k4 + r2 * (k5 + r2 * k6))
+
+
+def _model(xy: np.ndarray, c, jacobian: bool = False) -> tuple:
+    """The distorted point's coordinates (x_d, y_d), (N,) each, of ideal points (N, 2); with `jacobian`, also the
+    Jacobian's entries ∂x_d/∂x, ∂x_d/∂y (= ∂y_d/∂x) and ∂y_d/∂y."""
     x, y = xy[:, 0], xy[:, 1]
     k1, k2, p1, p2, k3, k4, k5, k6 = c
     r2 = x * x + y * y
-    a = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    b = 1.0 + r2 * (k4 + r2 * (k5 + r2 * k6))
-    return x, y, r2, a, b
+    a, b = _radial(r2, c)
+    g = a / b
+    xd = x * g + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
+    yd = y * g + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
+    if not jacobian:
+        return xd, yd
+    dg = ((k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2)) * b - a * (k4 + r2 * (2.0 * k5 + 3.0 * k6 * r2))) / (b * b)  # ∂g/∂r²
+    return (xd, yd, g + 2.0 * x * x * dg + 2.0 * p1 * y + 6.0 * p2 * x,
+            2.0 * x * y * dg + 2.0 * p1 * x + 2.0 * p2 * y,
+            g + 2.0 * y * y * dg + 6.0 * p1 * y + 2.0 * p2 * x)
 
 
 def distort(xy, coeffs) -> np.ndarray:
@@ -70,30 +85,13 @@ def distort(xy, coeffs) -> np.ndarray:
     -------
     (N, 2) float64, (x_d, y_d)
     """
-    xy = np.asarray(xy, dtype=np.float64)
-    x, y, r2, a, b = _terms(xy, coeffs)
-    p1, p2 = coeffs[2], coeffs[3]
-    g = a / b
-    return np.column_stack([x * g + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
-                            y * g + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y])
+    return np.column_stack(_model(np.asarray(xy, dtype=np.float64), coeffs))
 
 
 def distortion_jacobian(xy, coeffs) -> np.ndarray:
     """∂(x_d, y_d)/∂(x, y) at ideal normalised points, (N, 2, 2) float64."""
-    xy = np.asarray(xy, dtype=np.float64)
-    x, y, r2, a, b = _terms(xy, coeffs)
-    k1, k2, p1, p2, k3, k4, k5, k6 = coeffs
-    da = k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2)
-    db = k4 + r2 * (2.0 * k5 + 3.0 * k6 * r2)
-    g = a / b
-    dg = (da * b - a * db) / (b * b)  # ∂g/∂r²
-    xy2 = 2.0 * x * y * dg
-    J = np.empty((len(xy), 2, 2))
-    J[:, 0, 0] = g + 2.0 * x * x * dg + 2.0 * p1 * y + 6.0 * p2 * x
-    J[:, 0, 1] = xy2 + 2.0 * p1 * x + 2.0 * p2 * y
-    J[:, 1, 0] = xy2 + 2.0 * p1 * x + 2.0 * p2 * y
-    J[:, 1, 1] = g + 2.0 * y * y * dg + 6.0 * p1 * y + 2.0 * p2 * x
-    return J
+    _, _, j00, j01, j11 = _model(np.asarray(xy, dtype=np.float64), coeffs, jacobian=True)
+    return np.stack([np.column_stack([j00, j01]), np.column_stack([j01, j11])], axis=1)
 
 
 def undistort(xy_d, coeffs) -> tuple[np.ndarray, np.ndarray]:
@@ -138,39 +136,29 @@ _PLAIN_STEPS = 3
 
 
 def _newton(target: np.ndarray, c: np.ndarray, steps: int, start: np.ndarray | None = None) -> np.ndarray:
-    """`steps` plain Newton steps towards the ideal points of `target` (N, 2), from `start` (N, 2) or else from
-    target / g(|target|²)."""
-    k1, k2, p1, p2, k3, k4, k5, k6 = c
+    """`steps` plain Newton steps (`_model`) towards the ideal points of `target` (N, 2), from `start` (N, 2) or
+    else from target / g(|target|²); a point whose step is not finite stays where it is."""
     xd, yd = target[:, 0], target[:, 1]
     if start is None:
-        r2 = xd * xd + yd * yd
-        g = (1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))) / (1.0 + r2 * (k4 + r2 * (k5 + r2 * k6)))
+        a, b = _radial(xd * xd + yd * yd, c)
         with np.errstate(divide="ignore", invalid="ignore"):
-            x, y = xd / g, yd / g
+            x, y = xd * b / a, yd * b / a
         bad = ~(np.isfinite(x) & np.isfinite(y))
         x[bad], y[bad] = xd[bad], yd[bad]
+        xy = np.column_stack([x, y])
     else:
-        x, y = start[:, 0].copy(), start[:, 1].copy()
+        xy = start.copy()
     for _ in range(steps):
-        xx, yy, xy2 = x * x, y * y, x * y
-        r2 = xx + yy
-        a = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-        b = 1.0 + r2 * (k4 + r2 * (k5 + r2 * k6))
-        g = a / b
-        dg = ((k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2)) * b - a * (k4 + r2 * (2.0 * k5 + 3.0 * k6 * r2))) / (b * b)
-        rx = x * g + 2.0 * p1 * xy2 + p2 * (r2 + 2.0 * xx) - xd
-        ry = y * g + p1 * (r2 + 2.0 * yy) + 2.0 * p2 * xy2 - yd
-        cross = 2.0 * xy2 * dg + 2.0 * p1 * x + 2.0 * p2 * y
-        j00 = g + 2.0 * xx * dg + 2.0 * p1 * y + 6.0 * p2 * x
-        j11 = g + 2.0 * yy * dg + 6.0 * p1 * y + 2.0 * p2 * x
-        det = j00 * j11 - cross * cross
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            dx = (j11 * rx - cross * ry) / det
-            dy = (j00 * ry - cross * rx) / det
+            fx, fy, j00, j01, j11 = _model(xy, c, jacobian=True)
+            rx, ry = fx - xd, fy - yd
+            det = j00 * j11 - j01 * j01
+            dx = (j11 * rx - j01 * ry) / det
+            dy = (j00 * ry - j01 * rx) / det
         ok = np.isfinite(dx) & np.isfinite(dy)
-        x = np.where(ok, x - dx, x)
-        y = np.where(ok, y - dy, y)
-    return np.column_stack([x, y])
+        xy[:, 0] -= np.where(ok, dx, 0.0)
+        xy[:, 1] -= np.where(ok, dy, 0.0)
+    return xy
 
 
 def distorted_image(ideal, camera, pad: int, factor: int, ideal_pixels=None) -> np.ndarray:
@@ -182,8 +170,8 @@ def distorted_image(ideal, camera, pad: int, factor: int, ideal_pixels=None) -> 
         on a canvas `pad` px wider each way, `factor` times finer: its pixel I lies at the canvas coordinate
         (I + 0.5) / factor − 0.5 (the image's pixel u at u + pad)
     camera : PinholeCamera with `distortion`, resolution (W, H)
-    ideal_pixels : callable (N, 2) distorted pixels → (N, 2) ideal pixels of the same K, or None for this module's
-        `undistort` (a test passes OpenCV's `cv2.undistortPoints` to check ours against it)
+    ideal_pixels : callable (N, 2) distorted pixels → (N, 2) ideal pixels of the same K, or None for the camera's
+        own (`PinholeCamera.undistorted_pixels`; a test passes OpenCV's `cv2.undistortPoints` to check ours)
 
     Returns
     -------
@@ -194,10 +182,7 @@ def distorted_image(ideal, camera, pad: int, factor: int, ideal_pixels=None) -> 
 
     from .render import linear_to_srgb8
     if ideal_pixels is None:
-        def ideal_pixels(px):
-            Kinv = np.linalg.inv(camera.K)
-            xy, _ = undistort(px @ Kinv[:2, :2].T + Kinv[:2, 2], camera.distortion)
-            return xy @ camera.K[:2, :2].T + camera.K[:2, 2]
+        ideal_pixels = camera.undistorted_pixels
     w, h = camera.resolution
     expected = (factor * (h + 2 * pad), factor * (w + 2 * pad))
     if ideal.shape[:2] != expected:
