@@ -304,24 +304,27 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="verb", metavar="VERB", required=True)
 
     s = sub.add_parser("simulate", help="render what the camera sees in the mirror, with exact ground truth")
-    s.add_argument("setup", metavar="SETUP.toml")
-    s.add_argument("-o", "--output", metavar="OUT.png", required=True)
+    s.add_argument("setup", metavar="SETUP.toml", help="the setup file: camera, mirror and objects")
+    s.add_argument("-o", "--output", metavar="OUT.png", required=True,
+                   help="the image; OUT.toml, OUT.truth.json and OUT.gt.npz (ground truth) are written beside it")
     s.add_argument("--spp", type=int, default=4, help="samples per pixel at edges (default 4)")
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--seed", type=int, default=0, help="seed of the pixel sample pattern (default 0)")
     s.set_defaults(func=_cmd_simulate)
 
     f = sub.add_parser("fit", help="fit virtual slits (XSlit/GLC) to the mirror's reflected rays")
-    f.add_argument("setup", metavar="SETUP.toml")
-    f.add_argument("--roi", type=float, nargs=4, metavar=("X0", "Y0", "X1", "Y1"))
-    f.add_argument("--tiles", type=int, metavar="N")
-    f.add_argument("--json", action="store_true")
+    f.add_argument("setup", metavar="SETUP.toml", help="the setup file ([camera] and [mirror] are read)")
+    f.add_argument("--roi", type=float, nargs=4, metavar=("X0", "Y0", "X1", "Y1"),
+                   help="fit the rays of this pixel rectangle (default: the whole mirror)")
+    f.add_argument("--tiles", type=int, metavar="N", help="fit each tile of an N×N grid over the image instead")
+    f.add_argument("--json", action="store_true", help="print the fit as JSON")
     f.set_defaults(func=_cmd_fit)
 
     d = sub.add_parser("design", help="slits, sensitivity and discernible depth of a mirror setup")
-    d.add_argument("setup", metavar="SETUP.toml")
-    d.add_argument("--depth-range", type=float, nargs=2, metavar=("A", "B"))
-    d.add_argument("--json", action="store_true")
-    d.add_argument("--plot", metavar="OUT.png")
+    d.add_argument("setup", metavar="SETUP.toml", help="the setup file ([camera], [mirror], optional [uncertainty])")
+    d.add_argument("--depth-range", type=float, nargs=2, metavar=("A", "B"),
+                   help="depths from the mirror's axis to design for (m; default: 2 to 10 mirror radii beyond it)")
+    d.add_argument("--json", action="store_true", help="print the design as JSON")
+    d.add_argument("--plot", metavar="OUT.png", help="also write the sensitivity and discernible-depth curves")
     d.add_argument("--optimize", action="store_true",
                    help="search camera distance and mirror radius (±50 %%) for the least expected depth error; prints TOML")
     d.add_argument("--cube-size", type=float, default=0.04, metavar="S", help="cube edge for the expected error (m)")
@@ -330,9 +333,11 @@ def build_parser() -> argparse.ArgumentParser:
     d.set_defaults(func=_cmd_design)
 
     r = sub.add_parser("reconstruct", help="cube depths, sizes and positions from one mirror image")
-    r.add_argument("image", metavar="IMAGE.png")
-    r.add_argument("--setup", metavar="SETUP.toml")
-    r.add_argument("--cube-size", type=float, metavar="S")
+    r.add_argument("image", metavar="IMAGE.png", help="the photograph of the mirror (8-bit RGB PNG or JPEG)")
+    r.add_argument("--setup", metavar="SETUP.toml",
+                   help="the setup file (default: IMAGE.toml beside the image; [camera] and [mirror] are read)")
+    r.add_argument("--cube-size", type=float, metavar="S",
+                   help="the cubes' edge length when known (m): it fixes each cube's size")
     r.add_argument("--cube-size-std", type=float, metavar="SD",
                    help="the σ of --cube-size (m), carried through the exact estimator's fit into each depth's σ")
     r.add_argument("--on-floor", action="store_true",
@@ -346,8 +351,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--method", default=None,
                    help="exact (default), ddar, dds, shape_prior (the paper's, for cubes of one size) or "
                         "exact_shape_prior (cubes of one size: each fitted by exact at their common size)")
-    r.add_argument("-o", "--output", metavar="OUT.json")
-    r.add_argument("--overlay", metavar="OUT.png")
+    r.add_argument("-o", "--output", metavar="OUT.json", help="the result file (default: IMAGE.result.json)")
+    r.add_argument("--overlay", metavar="OUT.png", help="also draw the faces, their corners and depths on the image")
     r.add_argument("--blur-domain", default=None, metavar="D",
                    help="where a blurred image was blurred: auto (default: from the image), encoded (image "
                         "software blurred the stored values) or linear (optics, a renderer's pixel filter)")
@@ -356,9 +361,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.set_defaults(func=_cmd_reconstruct, without_cycle_collector=True)
 
     rp = sub.add_parser("report", help="an HTML report with 3D views, plots and annotated images")
-    rp.add_argument("input", metavar="IMAGE.png|RESULT.json")
-    rp.add_argument("--setup", metavar="SETUP.toml")
-    rp.add_argument("-o", "--output", metavar="DIR", required=True)
+    rp.add_argument("input", metavar="IMAGE.png|RESULT.json",
+                    help="an image (reconstructed now) or a reconstruct result (its setup and image read beside it)")
+    rp.add_argument("--setup", metavar="SETUP.toml",
+                    help="the setup file (default: the one the result names, or IMAGE.toml beside the image)")
+    rp.add_argument("-o", "--output", metavar="DIR", required=True, help="the folder index.html is written in")
     rp.add_argument("--method", default=None, help="estimator when IMAGE.png is given (as reconstruct)")
     rp.set_defaults(func=_cmd_report)
 
@@ -368,14 +375,16 @@ def build_parser() -> argparse.ArgumentParser:
     dm.set_defaults(func=_cmd_demo)
 
     dp = sub.add_parser("depthmap", help="dense depth of an XSlit image from line slopes (DDS) and an MRF")
-    dp.add_argument("image", metavar="IMAGE.png")
+    dp.add_argument("image", metavar="IMAGE.png", help="an XSlit image")
     dp.add_argument("--setup", metavar="XSLIT.toml", help="a TOML file with an [xslit] table")
     dp.add_argument("--xslit", type=float, nargs=4, metavar=("Z1", "Z2", "THETA1", "THETA2"),
                     help="slit depths and angles (degrees), instead of or over --setup")
     dp.add_argument("--pitch", type=float, nargs=2, metavar=("P1", "P2"), help="plane length per pixel along v1, v2")
-    dp.add_argument("--method", choices=("graphcut", "quadratic"), default="graphcut")
+    dp.add_argument("--method", choices=("graphcut", "quadratic"), default="graphcut",
+                    help="the MRF's solver: graph cuts (default) or the continuous quadratic solve")
     dp.add_argument("--lam", type=float, default=2.0, help="smoothness weight λ (default 2)")
-    dp.add_argument("-o", "--output", metavar="DEPTH.png", required=True)
+    dp.add_argument("-o", "--output", metavar="DEPTH.png", required=True,
+                    help="the depth map's picture; the metric depths as DEPTH.npy beside it")
     dp.set_defaults(func=_cmd_depthmap)
     return p
 
