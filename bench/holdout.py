@@ -8,9 +8,10 @@ of a strength drawn from `default_rng(SEED + 7)`; the odd scenes' cubes painted 
 JPEG coder at quality 90 (the reconstruct bench's JPEG variant) and reconstructed as compressed: JPEG
 images no JPEG change was tuned on. `exact` on each (or --method's estimator: `shape_prior` and `exact_shape_prior`
 on the scenes whose cubes are of one size alone, 2 and 5 of each seed); per cube the centre error
-‖ĉ − c‖ / (distance of c to the axis) in %, the depth error in reported σ, the turn and the edge
-misfit, the refusals, each cube invented (`bench_lighting.invented_line`), then recall, false positives
-and the error median / 90th percentile / max.
+‖ĉ − c‖ / (distance of c to the axis) in %, the signed depth error in % and in reported σ, the turn and the edge
+misfit, the refusals, each cube invented (`bench_lighting.invented_line`), then recall, false positives,
+the error median / 90th percentile / max, and how many depths were read nearer and further than the truth
+with the signed median (a bias the unsigned figures hide).
 Not part of `make bench` (the first run renders for about 5 min on 2 cores; renders are cached in
 bench/out/renders/, and the results written to bench/out/holdout-SEED[-grey][-jpeg][-M].json, M where not exact).
 """
@@ -79,6 +80,7 @@ def main(argv=None) -> int:
             c = np.asarray(truth[j]["center"])
             depth = float(mir.distance_to_axis(c[None])[0])
             res[f"{i}/{j}"] = {"centre_err_pct": float(np.linalg.norm(cube.estimate.center - c) / depth * 100),
+                               "depth_err_pct": float((cube.depth - depth) / depth * 100),
                                "depth_sigmas": float((cube.depth - depth) / cube.depth_std),
                                "turn_deg": float(sc.turn_deg[j]), "misfit_px": float(cube.estimate.rms_residual),
                                "tilt_deg": float(np.degrees(np.arcsin(min(abs(float(cube.estimate.normal @ mir.axis)), 1.0))))}
@@ -94,11 +96,13 @@ def main(argv=None) -> int:
             print(f"      {invented_line(cube)}")
     e = np.array([v["centre_err_pct"] for v in res.values() if v])
     z = np.abs([v["depth_sigmas"] for v in res.values() if v])
+    signed = np.array([v["depth_err_pct"] for v in res.values() if v])
     print(f"holdout {seed}{' (all grey)' if all_grey else ''}{' (JPEG)' if jpeg else ''}"
           f"{f' ({method})' if method != 'exact' else ''}: found {len(e)} of {len(res)}, {len(fps)} false "
           f"positives; centre error median {np.median(e):.2f} %, 90th pct {np.percentile(e, 90):.2f} %, max "
           f"{e.max():.1f} %; depth within 1 / 2 / 3 σ {100 * np.mean(z <= 1):.0f} / {100 * np.mean(z <= 2):.0f} / "
-          f"{100 * np.mean(z <= 3):.0f} %")
+          f"{100 * np.mean(z <= 3):.0f} %; depth read nearer / further than the truth {np.sum(signed < 0)} / "
+          f"{np.sum(signed > 0)}, signed median {np.median(signed):+.2f} %")
     OUT.mkdir(parents=True, exist_ok=True)
     path = OUT / (f"holdout-{seed}{'-grey' if all_grey else ''}{'-jpeg' if jpeg else ''}"
                   f"{f'-{method}' if method != 'exact' else ''}.json")
