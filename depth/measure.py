@@ -30,6 +30,7 @@ import cv2
 import numpy as np
 
 from depth.errors import DepthError
+from raytrace.response import linear_to_srgb as _linear_to_srgb, srgb_to_linear
 
 __all__ = [
     "CubeDetection",
@@ -252,15 +253,6 @@ def _check_mask(mask, shape: tuple[int, int], name: str) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------ colour
-
-
-def srgb_to_linear(srgb: np.ndarray) -> np.ndarray:
-    """Invert the sRGB transfer function.
-
-    srgb : (...) float64 in [0, 1] → (...) float64 linear values in [0, 1].
-    """
-    srgb = np.asarray(srgb, dtype=np.float64)
-    return np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
 
 
 EDGE_CHANNELS = ("colour", "luma")
@@ -2623,12 +2615,6 @@ def _pixel_corners(img, points, normals, half_width, step):
     vals = np.stack([img[v0, u0], img[v0, u1], img[v1, u0], img[v1, u1]], axis=2)
     wts = np.stack([(1 - fu) * (1 - fv), fu * (1 - fv), (1 - fu) * fv, fu * fv], axis=2)
     return vals, wts
-
-
-def _linear_to_srgb(lin: np.ndarray) -> np.ndarray:
-    """The sRGB transfer function (inverse of `srgb_to_linear`)."""
-    lin = np.clip(lin, 0.0, 1.0)
-    return np.where(lin <= 0.0031308, 12.92 * lin, 1.055 * lin ** (1.0 / 2.4) - 0.055)
 
 
 def _edge_offsets_encoded(srgb, points, normals, half_width, min_contrast, step=0.25):

@@ -5,7 +5,8 @@ back to pixels with `project`; `sample_offsets` gives a reproducible stratified 
 and `pixel_sample_offsets` that pattern rotated differently in every pixel.
 Conventions are those of docs/CONVENTIONS.md (OpenCV pinhole, pixel (0, 0) is the centre of
 the top-left pixel). A pinhole camera may carry a lens's distortion, OpenCV's model (`raytrace.lens`):
-its rays and projections then bend by it, so everything built on them does.
+its rays and projections then bend by it, so everything built on them does. Its `response` says how the
+8-bit values it stores relate to linear light (`raytrace.response`; None: sRGB).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from ._validate import (
 )
 from .errors import RaytraceError
 from .lens import as_distortion, distort, distortion_jacobian, undistort
+from .response import CameraResponse, as_response
 
 __all__ = ["PinholeCamera", "distortion_fold", "XSlitCamera", "PushbroomCamera", "sample_offsets",
            "pixel_sample_offsets", "pixel_grid"]
@@ -155,6 +157,9 @@ class PinholeCamera:
     distortion : (8,) float64 or None
         The lens's distortion, OpenCV's (k1, k2, p1, p2, k3, k4, k5, k6) (`raytrace.lens`; 4, 5 or 8
         numbers are accepted); None (or all zero): an ideal pinhole. It must be one-to-one over the image.
+    response : raytrace.response.CameraResponse or None
+        How the 8-bit values of its images relate to linear light (`as_response`'s values are accepted);
+        None (or "srgb"): sRGB.
     """
 
     resolution: tuple[int, int]
@@ -162,6 +167,7 @@ class PinholeCamera:
     R: np.ndarray
     position: np.ndarray
     distortion: np.ndarray | None = None
+    response: CameraResponse | None = None
     is_central: bool = field(default=True, init=False, repr=False)
 
     def __post_init__(self):
@@ -177,6 +183,7 @@ class PinholeCamera:
         object.__setattr__(self, "R", as_rotation(self.R, "R"))
         object.__setattr__(self, "position", as_vector(self.position, "position"))
         object.__setattr__(self, "distortion", as_distortion(self.distortion))
+        object.__setattr__(self, "response", as_response(self.response))
         if self.distortion is not None:
             self._check_one_to_one()
 
@@ -198,7 +205,7 @@ class PinholeCamera:
 
     @classmethod
     def from_look_at(cls, resolution, focal_px, principal_px=None, position=None, look_at=None, up=(0.0, 1.0, 0.0),
-                     distortion=None):
+                     distortion=None, response=None):
         """Build a camera from the setup contract's keys.
 
         Parameters
@@ -208,6 +215,7 @@ class PinholeCamera:
         position, look_at, up : (3,) world
         principal_px : (cx, cy) or None for ((W-1)/2, (H-1)/2)
         distortion : OpenCV's (k1, k2, p1, p2[, k3[, k4, k5, k6]]) or None for an ideal pinhole
+        response : how its 8-bit values relate to linear light (`raytrace.response.as_response`); None: sRGB
         """
         w, h = as_resolution(resolution)
         f = np.atleast_1d(np.asarray(focal_px, dtype=np.float64)) if focal_px is not None else None
@@ -237,7 +245,8 @@ class PinholeCamera:
         x /= np.linalg.norm(x)
         y = np.cross(z, x)
         K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
-        return cls(resolution=(w, h), K=K, R=np.stack([x, y, z]), position=position, distortion=distortion)
+        return cls(resolution=(w, h), K=K, R=np.stack([x, y, z]), position=position, distortion=distortion,
+                   response=response)
 
     @property
     def width(self) -> int:

@@ -1,0 +1,156 @@
+"""A camera's response: how the 8-bit values it stores relate to the linear light that reached the sensor.
+
+sRGB (IEC 61966-2-1) is what a renderer writes and what the whole pipeline assumes by default. A camera, or
+another renderer's view transform (a gamma, a tone curve), may store something else; a pixel that mixes two
+colours, at an edge, is their mix in linear light, so a sub-pixel edge read through the wrong curve lands off
+(`catadioptric`'s `[camera] response`). `CameraResponse` is one of:
+
+- "linear": the stored value is the light itself;
+- a gamma g: stored = light ** (1 / g);
+- a table: the light of each of the 256 codes, one curve for all channels or one per channel (R, G, B), as a
+  radiometric calibration gives it (e.g. `cv2.createCalibrateDebevec`, whose channels are in B, G, R order);
+  it is scaled so that code 255 is 1.
+
+`to_linear` reads stored values as light; `as_srgb` re-encodes them as the sRGB values a camera of that light
+would have stored (what `depth` reads); `encode8` stores light as this camera would (what `simulate` writes).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import RaytraceError
+
+__all__ = ["CameraResponse", "as_response", "srgb_to_linear", "linear_to_srgb"]
+
+
+def srgb_to_linear(srgb) -> np.ndarray:
+    """Invert the sRGB transfer function: (...) float64 in [0, 1] → (...) float64 linear values in [0, 1]."""
+    srgb = np.asarray(srgb, dtype=np.float64)
+    return np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
+
+
+def linear_to_srgb(lin) -> np.ndarray:
+    """The sRGB transfer function (inverse of `srgb_to_linear`), values clipped to [0, 1] first."""
+    lin = np.clip(lin, 0.0, 1.0)
+    return np.where(lin <= 0.0031308, 12.92 * lin, 1.055 * lin ** (1.0 / 2.4) - 0.055)
+
+
+CODES = np.arange(256) / 255.0
+"""The 256 stored values of an 8-bit image, in [0, 1]."""
+
+
+@dataclass(frozen=True, eq=False)
+class CameraResponse:
+    """A response other than sRGB (which is None wherever a camera's response is asked for).
+
+    Attributes
+    ----------
+    kind : "linear", "gamma" or "table"
+    gamma : float, for "gamma" (stored = light ** (1 / gamma))
+    table : (256, 3) float64, for "table": the light of each code per channel, non-decreasing, code 255 at 1
+    """
+
+    kind: str
+    gamma: float | None = None
+    table: np.ndarray | None = None
+
+    def __eq__(self, other) -> bool:
+        if not isinstance(other, CameraResponse):
+            return NotImplemented
+        return (self.kind, self.gamma) == (other.kind, other.gamma) and (
+            self.table is other.table or (self.table is not None and other.table is not None
+                                          and np.array_equal(self.table, other.table)))
+
+    def __hash__(self) -> int:
+        return hash((self.kind, self.gamma, None if self.table is None else self.table.tobytes()))
+
+    def to_linear(self, values) -> np.ndarray:
+        """The light of stored values: (..., 3) uint8 codes, or float64 stored values in [0, 1] (a table's
+        curve then interpolated between codes) → (..., 3) float64 in [0, 1]."""
+        values = np.asarray(values)
+        if self.kind == "table":
+            if values.dtype == np.uint8:
+                return self.table[values, np.arange(3)]
+            x = np.clip(values.astype(np.float64), 0.0, 1.0)
+            return np.stack([np.interp(x[..., k], CODES, self.table[:, k]) for k in range(3)], axis=-1)
+        x = values / 255.0 if values.dtype == np.uint8 else np.clip(values.astype(np.float64), 0.0, 1.0)
+        return x if self.kind == "linear" else x ** self.gamma
+
+    def as_srgb(self, values) -> np.ndarray:
+        """Stored values re-encoded as sRGB: (..., 3) float64 in [0, 1], what a camera that stores sRGB would
+        have stored of the same light (unrounded). 8-bit codes are looked up, each code's value made once."""
+        values = np.asarray(values)
+        if values.dtype == np.uint8:
+            lut = linear_to_srgb(self.to_linear(np.repeat(np.arange(256, dtype=np.uint8)[:, None], 3, axis=1)))
+            return lut[values, np.arange(3)]
+        return linear_to_srgb(self.to_linear(values))
+
+    def encode8(self, linear) -> np.ndarray:
+        """Light (..., 3) in [0, 1] (clipped) → the (..., 3) uint8 codes this camera stores: its curve's inverse
+        rounded to the nearest code, as a camera rounds what its curve makes of the light (a table's curve is
+        piecewise linear between codes; on a flat run, the run's first code)."""
+        x = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0)
+        if self.kind != "table":
+            stored = x if self.kind == "linear" else x ** (1.0 / self.gamma)
+            return np.round(stored * 255.0).astype(np.uint8)
+        out = np.empty(x.shape, dtype=np.uint8)
+        for k in range(3):
+            t = self.table[:, k]
+            code = np.round(np.interp(x[..., k], t, np.arange(256.0))).astype(np.intp)
+            out[..., k] = np.searchsorted(t, t[code], side="left")
+        return out
+
+    def to_value(self):
+        """The setup file's value of this response: "linear", the gamma, or the table (256 numbers, or 3 lists
+        of 256 where the channels differ)."""
+        if self.kind == "linear":
+            return "linear"
+        if self.kind == "gamma":
+            return self.gamma
+        if np.array_equal(self.table[:, 0], self.table[:, 1]) and np.array_equal(self.table[:, 0], self.table[:, 2]):
+            return self.table[:, 0].tolist()
+        return self.table.T.tolist()
+
+
+def as_response(value, name: str = "response") -> CameraResponse | None:
+    """A camera's response from its setup value: None or "srgb" (→ None: sRGB), "linear" (either in any case), a
+    gamma (a number in (0, 10]), or a table of 256 numbers (the light of each code) or of 3 such lists (R, G, B). Raises
+    `RaytraceError` naming `name` and what was expected."""
+    if value is None or (isinstance(value, str) and value.lower() == "srgb"):
+        return None
+    if isinstance(value, CameraResponse):
+        return value
+    if isinstance(value, str):
+        if value.lower() == "linear":
+            return CameraResponse("linear")
+        raise RaytraceError(f'{name}: expected "srgb", "linear", a gamma or a table of 256 values, got {value!r}')
+    if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool):
+        g = float(value)
+        if not (np.isfinite(g) and 0.0 < g <= 10.0):
+            raise RaytraceError(f"{name}: expected a gamma in (0, 10] (stored = light ** (1 / gamma)), got {value!r}")
+        return CameraResponse("gamma", gamma=g)
+    try:
+        table = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        table = None
+    if table is None or table.shape not in ((256,), (3, 256)):
+        raise RaytraceError(f'{name}: expected "srgb", "linear", a gamma, or a table of 256 numbers (the light of '
+                            f"each code) or 3 lists of 256 (R, G, B), got {_shape_of(value, table)}")
+    table = np.broadcast_to(table, (3, 256)).T
+    if not np.all(np.isfinite(table)) or np.any(table < 0):
+        raise RaytraceError(f"{name}: expected finite light values >= 0 in its table")
+    if np.any(np.diff(table, axis=0) < 0) or np.any(table[-1] <= table[0]):
+        channel = int(np.flatnonzero(np.any(np.diff(table, axis=0) < 0, axis=0) | (table[-1] <= table[0]))[0])
+        raise RaytraceError(f"{name}: expected a table rising with the code (never falling, code 255 above code 0); "
+                            f"channel {channel} {'falls' if np.any(np.diff(table[:, channel]) < 0) else 'is flat'}")
+    return CameraResponse("table", table=np.ascontiguousarray(table / table[-1]))
+
+
+def _shape_of(value, table) -> str:
+    """How `as_response` describes a value it cannot take."""
+    if table is None or table.ndim == 0:
+        return repr(value)[:60]
+    return f"an array of shape {table.shape}"
