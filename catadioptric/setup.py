@@ -11,6 +11,9 @@ Extensions to the contract (all optional, so older files stay valid):
   faces are not lit alike), `ambient` (0..1).
 - `[camera] distortion`: the lens's distortion, OpenCV's coefficients (k1, k2, p1, p2[, k3[, k4, k5, k6]])
   as `cv2.calibrateCamera` gives them; it must be one-to-one over the image. Absent: an ideal pinhole.
+- `[camera] response`: how the image's 8-bit values relate to linear light: "srgb" (the default), "linear", a
+  gamma g (stored = light ** (1 / g)), or a table of the light of each of the 256 codes (one list, or 3 for R, G,
+  B), as a radiometric calibration gives it (`raytrace.response`).
 - `[uncertainty]`: the σ of the setup's numbers (`UncertaintyConfig`).
 """
 
@@ -128,6 +131,18 @@ def _distortion(d: dict, w: _Where) -> tuple[float, ...] | None:
     return tuple(float(v) for v in x)
 
 
+def _response(d: dict, w: _Where):
+    """`[camera] response` as a `raytrace.response.CameraResponse`, or None (sRGB) where the key is absent."""
+    if "response" not in d:
+        return None
+    from raytrace.errors import RaytraceError
+    from raytrace.response import as_response
+    try:
+        return as_response(d["response"], w.key("response"))
+    except RaytraceError as exc:
+        raise SetupError(f"{w.source}: {exc}") from None
+
+
 @dataclass(frozen=True)
 class CameraConfig:
     """The pinhole camera of `[camera]` (OpenCV conventions)."""
@@ -139,8 +154,10 @@ class CameraConfig:
     up: tuple[float, float, float]
     principal_px: tuple[float, float] | None = None
     distortion: tuple[float, ...] | None = None  # OpenCV's (k1, k2, p1, p2[, k3[, k4, k5, k6]]); None: none
+    response: Any = None  # a raytrace.response.CameraResponse; None: sRGB
 
-    KEYS: ClassVar[set] = {"resolution", "focal_px", "principal_px", "position", "look_at", "up", "distortion"}
+    KEYS: ClassVar[set] = {"resolution", "focal_px", "principal_px", "position", "look_at", "up", "distortion",
+                           "response"}
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "<dict>", prefix: str = "camera.") -> "CameraConfig":
@@ -154,7 +171,8 @@ class CameraConfig:
                   look_at=_vector(d, "look_at", w, 3),
                   up=_vector(d, "up", w, 3, nonzero=True),
                   principal_px=_vector(d, "principal_px", w, 2) if "principal_px" in d else None,
-                  distortion=_distortion(d, w))
+                  distortion=_distortion(d, w),
+                  response=_response(d, w))
         view = np.subtract(cam.look_at, cam.position)
         if np.linalg.norm(view) == 0:
             raise w.error("look_at", "a point different from camera.position", list(cam.look_at))
@@ -186,13 +204,15 @@ class CameraConfig:
         d.update(position=list(self.position), look_at=list(self.look_at), up=list(self.up))
         if self.distortion is not None:
             d["distortion"] = list(self.distortion)
+        if self.response is not None:
+            d["response"] = self.response.to_value()
         return d
 
     def build(self):
         """The `raytrace.camera.PinholeCamera` of this config."""
         from raytrace.camera import PinholeCamera
         return PinholeCamera.from_look_at(self.resolution, self.focal_px, self.principal,
-                                          self.position, self.look_at, self.up, self.distortion)
+                                          self.position, self.look_at, self.up, self.distortion, self.response)
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """`catadioptric simulate`: `simulate(setup)` renders a setup; `write_simulation` writes its four files.
 
-Outputs of `simulate SETUP.toml -o OUT.png`: OUT.png (sRGB), OUT.toml (the setup as rendered),
-OUT.truth.json (per cube, the keys of the reconstruct result) and OUT.gt.npz (per-pixel ground
+Outputs of `simulate SETUP.toml -o OUT.png`: OUT.png (sRGB, or as `[camera] response` stores light), OUT.toml
+(the setup as rendered), OUT.truth.json (per cube, the keys of the reconstruct result) and OUT.gt.npz (per-pixel ground
 truth: object_id, via_mirror, ray_distance, mirror_point, reflected_dir).
 """
 
@@ -79,8 +79,10 @@ def _gt_arrays(r) -> dict:
 
 
 def _png(sim: Simulation) -> bytes:
+    """OUT.png's bytes: the render stored as the setup's camera stores light (`[camera] response`; sRGB)."""
     from raytrace.render import linear_to_srgb8
-    return encode_png(linear_to_srgb8(sim.render.image))
+    response = sim.setup.camera.response
+    return encode_png(linear_to_srgb8(sim.render.image) if response is None else response.encode8(sim.render.image))
 
 
 def _write_rest(out: OutputSet, sim: Simulation, paths: dict, png: bytes | None = None) -> None:

@@ -567,7 +567,7 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
 
     Parameters
     ----------
-    image : (H, W, 3) uint8 or float64 in [0, 1], sRGB
+    image : (H, W, 3) uint8 or float64 in [0, 1], sRGB (or as `camera.response` stores light)
     camera : raytrace.camera.PinholeCamera
     mirror : raytrace.mirror.CylinderMirror (or any mirror with `intersect`)
     method : "exact" (default), "ddar", "dds", "shape_prior" or "exact_shape_prior" (the cubes are of one
@@ -636,6 +636,10 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1):
         raise DepthError(f"workers: expected an integer >= 1, got {workers!r}")
     raw = _image_array(image, camera.resolution)
+    if getattr(camera, "response", None) is not None:
+        # a camera that does not store sRGB (`raytrace.response`): its values re-encoded as the sRGB values of
+        # their light, which everything below reads
+        raw = camera.response.as_srgb(raw if raw.dtype == np.uint8 else check_image(raw, camera.resolution))
     # The faces are outlined and estimated by a helper process (`depth.workers.fork_helper`), which imports
     # scipy's modules and the estimators' (0.5–0.6 s) while this process detects the cubes (which needs none
     # of them), then forks the workers: the one `start_helper` forked before the image was read, else on a

@@ -47,6 +47,26 @@ def test_the_lens_distortion_is_optional_and_round_trips(valid_setup, write_setu
     assert np.linalg.norm(cam.project(ideal.rays(corner)[0] + ideal.rays(corner)[1])[0] - corner) > 1.0
 
 
+def test_the_camera_response_is_optional_and_round_trips(valid_setup, write_setup, tmp_path):
+    """`[camera] response` (an extension): "srgb" (the default, as absent), "linear", a gamma or a table of the light
+    of each code, kept through a round trip (a table scaled so that code 255 is 1) and built into the camera."""
+    assert load_setup(write_setup(valid_setup)).camera.response is None
+    valid_setup["camera"]["response"] = "srgb"
+    assert load_setup(write_setup(valid_setup)).camera.response is None
+    x = np.arange(256) / 255.0
+    for value, light_of_128 in [(2.2, (128 / 255) ** 2.2), ("linear", 128 / 255),
+                                ([list(4.0 * x ** 2.0), list(4.0 * x ** 2.2), list(4.0 * x ** 2.4)],
+                                 np.array([x[128] ** 2.0, x[128] ** 2.2, x[128] ** 2.4]))]:
+        valid_setup["camera"]["response"] = value
+        s = load_setup(write_setup(valid_setup))
+        p = tmp_path / "again.toml"
+        save_setup(s, p)
+        assert load_setup(p) == s and "response = " in p.read_text()
+        cam = s.camera.build()
+        np.testing.assert_allclose(cam.response.to_linear(np.full((1, 3), 128, dtype=np.uint8))[0],
+                                   np.broadcast_to(light_of_128, (3,)), rtol=1e-13)
+
+
 def test_builtin_demo_setup_is_valid():
     from importlib.resources import files
     s = load_setup(files("catadioptric") / "data" / "demo.toml")
@@ -90,6 +110,11 @@ BAD = [
     ("camera.distortion", [0.1, math.inf, 0.0, 0.0], "camera.distortion: expected a list of finite numbers"),
     ("camera.distortion", [-5.0, 0.0, 0.0, 0.0], "camera.distortion: expected coefficients whose distortion is "
                                                   "one-to-one over the image \\(these fold near pixel"),
+    ("camera.response", "gamma", 'camera.response: expected "srgb", "linear", a gamma or a table of 256 values'),
+    ("camera.response", -2.2, "camera.response: expected a gamma in \\(0, 10\\]"),
+    ("camera.response", [0.0, 0.5, 1.0], "camera.response: expected .* a table of 256 numbers .* got an array of "
+                                         "shape \\(3,\\)"),
+    ("camera.response", [1.0] * 256, "camera.response: expected a table rising with the code .* channel 0 is flat"),
     ("camera.position", [0.0, 0.0, 0.05], "camera.position: expected a point outside the mirror"),
     ("camera.look_at", [0.0, 0.0, 1.5], "camera.look_at: expected the camera to look at the mirror"),
     ("mirror.radius", -0.1, "mirror.radius: expected a positive number"),
