@@ -118,6 +118,7 @@ def score(result_cubes: list, truth: list, kinds: list, turns: list, tol_px: flo
             c = result_cubes[taken[j][0]]
             row["centre_err"] = float(np.linalg.norm(np.subtract(c["center"], t["center"])) / t["depth"])
             row["size_err"] = float(c["size"] / t["size"] - 1.0)
+            row["depth_err"] = float(c["depth"] / t["depth"] - 1.0)
             row["corner_err_px"] = _corner_error_px(np.asarray(c["front_face_corners_px"]), np.asarray(t["front_face_corners_px"]))
             row["edge_misfit_px"] = c.get("edge_misfit_px")
             # the estimated face's tilt out of the vertical: its normal's angle with the true face's plane's
