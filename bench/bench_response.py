@@ -15,7 +15,9 @@ again through each of RESPONSES (its sRGB values decoded to light and stored as 
 - `log`: stored = log(1 + 30 light) / log(31), a camera's log profile, as a table.
 
 Each is read `declared` (the setup's `response`) and `ignored` (read as sRGB, as a setup without the key reads
-it), beside the `sRGB` image as rendered. Per reading: recall, false positives, the centre error ‖ĉ − c‖ /
+it), beside the `sRGB` image as rendered; the `tone curve` image and the sRGB one also through JPEG (quality 90,
+`bench_reconstruct.variant`, read as compressed): the coder works on the stored values, which the readings of
+encoded values (luma, chroma) take as sRGB's. Per reading: recall, false positives, the centre error ‖ĉ − c‖ /
 (distance of c to the axis) (median, max, over 3 %), depth within 1 / 2 / 3 σ, the depth error's signed median; and
 the time of a `declared` reading over the same image's `ignored` one (one process, each the best of 2).
 
@@ -35,8 +37,11 @@ N_OURS, SEED = 6, 4242
 QUICK = 2
 """Images of each renderer with --quick."""
 RESPONSES = ("gamma 2.2", "gamma 1.8", "tone curve", "log")
-READINGS = ("mitsuba, sRGB", *(f"mitsuba, {r}, {how}" for r in RESPONSES for how in ("declared", "ignored")),
-            "ours, sRGB", *(f"ours, {r}, {how}" for r in RESPONSES for how in ("declared", "ignored")))
+JPEG_RESPONSE = "tone curve"
+"""The response whose image is also put through JPEG (quality 90, the reconstruct bench's) after it is stored."""
+READINGS = tuple(reading for renderer in ("mitsuba", "ours") for reading in (
+    f"{renderer}, sRGB", *(f"{renderer}, {r}, {how}" for r in RESPONSES for how in ("declared", "ignored")),
+    f"{renderer}, sRGB JPEG", *(f"{renderer}, {JPEG_RESPONSE} JPEG, {how}" for how in ("declared", "ignored"))))
 ROLL_OFF = 1.5
 LOG_A = 30.0
 
@@ -71,7 +76,7 @@ def images(quick: bool):
 
 
 def run(quick: bool = False, log=print) -> dict:
-    from bench.bench_reconstruct import score
+    from bench.bench_reconstruct import score, variant
     from depth.reconstruct import reconstruct
     from raytrace.response import srgb_to_linear
     from raytrace.truth import cube_truth
@@ -87,10 +92,15 @@ def run(quick: bool = False, log=print) -> dict:
             stored = curve.encode8(light)
             jobs += [(f"{renderer}, {r}, declared", stored, dataclasses.replace(camera, response=curve)),
                      (f"{renderer}, {r}, ignored", stored, camera)]
+        coded = variant(curves[JPEG_RESPONSE].encode8(light), "jpeg", seed=0)
+        jobs += [(f"{renderer}, sRGB JPEG", variant(img, "jpeg", seed=0), camera),
+                 (f"{renderer}, {JPEG_RESPONSE} JPEG, declared", coded,
+                  dataclasses.replace(camera, response=curves[JPEG_RESPONSE])),
+                 (f"{renderer}, {JPEG_RESPONSE} JPEG, ignored", coded, camera)]
         seconds = {}
         for reading, image, cam in jobs:
             t = time.perf_counter()
-            rec = reconstruct(image, cam, mirror)
+            rec = reconstruct(image, cam, mirror, compressed="JPEG" in reading)
             seconds[reading] = time.perf_counter() - t
             s = score([c.to_dict() for c in rec.cubes], truth, [sc.kind] * len(truth), list(sc.turn_deg))
             records.append({"renderer": renderer, "scene": name, "reading": reading, "seconds": seconds[reading],
