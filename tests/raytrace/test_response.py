@@ -59,6 +59,7 @@ def test_a_table_is_scaled_to_its_top_code_and_read_per_channel():
     px = np.array([[[10, 128, 255], [255, 0, 37]]], dtype=np.uint8)
     want = np.array([[[x[10] ** 1.8, x[128] ** 2.2, 1.0], [1.0, 0.0, x[37] ** 2.6]]])
     np.testing.assert_allclose(r.to_linear(px), want, rtol=1e-13)
+    np.testing.assert_allclose(r.as_srgb(px), linear_to_srgb(want), rtol=1e-13)  # each channel's own look-up
     mid = (px[0, 0].astype(float) + 0.5) / 255.0  # half-way between codes 10/11, 128/129, 255 (clipped)
     lo, hi = r.to_linear(px[0, 0]), r.to_linear(np.minimum(px[0, 0].astype(int) + 1, 255).astype(np.uint8))
     np.testing.assert_allclose(r.to_linear(mid), (lo + hi) / 2, rtol=1e-12)
