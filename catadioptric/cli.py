@@ -273,6 +273,49 @@ def _cmd_report(args) -> int:
     return 0
 
 
+def _cmd_response(args) -> int:
+    from catadioptric import reconstruct as rc
+    from raytrace.response import calibrate_response
+    if len(args.times) != len(args.images):
+        raise CatadioptricError(f"--times: expected one exposure time per image ({len(args.images)}), "
+                                f"got {len(args.times)}")
+    images = [rc.read_image(path) for path in args.images]
+    for path, im in zip(args.images, images):
+        if im.shape != images[0].shape:
+            raise CatadioptricError(f"{path}: expected the size of {args.images[0]}, {images[0].shape[1]}×"
+                                    f"{images[0].shape[0]} pixels, got {im.shape[1]}×{im.shape[0]}")
+    response, agreement = calibrate_response(images, args.times)
+    print(_response_toml(response, agreement, len(images)), end="")
+    return 0
+
+
+def _exposure_time(text: str) -> float:
+    """An exposure time as a number or a fraction ("1/250")."""
+    num, _, den = text.partition("/")
+    try:
+        return float(num) / float(den) if den else float(num)
+    except (ValueError, ZeroDivisionError):
+        raise argparse.ArgumentTypeError(f"expected an exposure time (a number or a fraction such as 1/250), "
+                                         f"got {text!r}") from None
+
+
+def _response_toml(response, agreement, n_images: int) -> str:
+    """The `[camera] response` TOML lines of a calibrated response (one list a channel, R, G, B), with comments
+    on where it came from and how well its exposures agree."""
+    table = response.table
+    lines = [f"# the camera's response (catadioptric response), from {n_images} exposures: each code's light, R, G, B",
+             "# successive exposures read through it agree on each pixel's light to "
+             + ("(no pixel well exposed in two)" if agreement is None else
+                f"{100 * agreement['median']:.2f} % (median), {100 * agreement['p90']:.2f} % (90th percentile) "
+                f"over {agreement['values']} pixel channels"),
+             "[camera]", "response = ["]
+    for k in range(3):
+        rows = [", ".join(f"{v:.7g}" for v in table[a:a + 8, k]) for a in range(0, 256, 8)]
+        lines.append("  [" + ",\n   ".join(rows) + "],")
+    lines.append("]")
+    return "\n".join(lines) + "\n"
+
+
 def _cmd_demo(args) -> int:
     from catadioptric import demo
     return demo.run(args)
@@ -368,6 +411,14 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("-o", "--output", metavar="DIR", required=True, help="the folder index.html is written in")
     rp.add_argument("--method", default=None, help="estimator when IMAGE.png is given (as reconstruct)")
     rp.set_defaults(func=_cmd_report)
+
+    rs = sub.add_parser("response", help="a camera's response from one scene at several exposure times: prints its "
+                                         "[camera] response")
+    rs.add_argument("images", metavar="IMAGE", nargs="+",
+                    help="one still scene, each image at another exposure time, the camera's other settings unchanged")
+    rs.add_argument("--times", type=_exposure_time, nargs="+", required=True, metavar="T",
+                    help="each image's exposure time, in their order (any unit; a fraction such as 1/250 too)")
+    rs.set_defaults(func=_cmd_response)
 
     dm = sub.add_parser("demo", help="run the built-in example")
     dm.add_argument("-o", "--output", metavar="DIR", default=None,

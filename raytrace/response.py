@@ -13,6 +13,7 @@ colours, at an edge, is their mix in linear light, so a sub-pixel edge read thro
 
 `to_linear` reads stored values as light; `as_srgb` re-encodes them as the sRGB values a camera of that light
 would have stored (what `depth` reads); `encode8` stores light as this camera would (what `simulate` writes).
+`calibrate_response` measures a camera's response from one scene taken at several exposure times.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import numpy as np
 
 from .errors import RaytraceError
 
-__all__ = ["CameraResponse", "as_response", "srgb_to_linear", "linear_to_srgb"]
+__all__ = ["CameraResponse", "as_response", "calibrate_response", "srgb_to_linear", "linear_to_srgb"]
 
 
 def srgb_to_linear(srgb) -> np.ndarray:
@@ -154,3 +155,62 @@ def _shape_of(value, table) -> str:
     if table is None or table.ndim == 0:
         return repr(value)[:60]
     return f"an array of shape {table.shape}"
+
+
+WELL_EXPOSED = (32, 240)
+"""Codes `calibrate_response` compares exposures on: away from the dark noise and from saturation."""
+
+
+def calibrate_response(images, times, samples: int = 200, smoothness: float = 10.0):
+    """A camera's response from one scene taken at several exposure times (Debevec and Malik 1997, OpenCV's
+    `cv2.createCalibrateDebevec`), kept rising with the code (a running maximum) and scaled so that code 255 is 1.
+
+    images : sequence of (H, W, 3) uint8 RGB images of one still scene, the camera's other settings unchanged
+    times : their exposure times (s, or any unit), > 0
+    samples : pixels the calibration solves on (a grid); smoothness : its curve's smoothness weight (λ)
+
+    Returns (response, agreement): agreement is how far the exposures, read through it, disagree on each pixel's
+    light (per unit time) where each pair of successive exposures has it well exposed in every channel
+    (`WELL_EXPOSED`): {"median": .., "p90": .., "values": n (pixel channels compared)}, relative (0.01 is 1 %), or
+    None where no pixel is.
+    Raises `RaytraceError` naming the argument on bad input.
+    """
+    import cv2
+    times = np.asarray(times, dtype=np.float64).ravel()
+    imgs = [np.asarray(im) for im in images]
+    if len(imgs) < 2 or len(times) != len(imgs):
+        raise RaytraceError(f"times: expected one exposure time per image (at least 2 images), got {len(times)} "
+                            f"time(s) for {len(imgs)} image(s)")
+    if not np.all(np.isfinite(times)) or np.any(times <= 0):
+        raise RaytraceError(f"times: expected positive exposure times, got {times.tolist()}")
+    if len(np.unique(times)) < 2:
+        raise RaytraceError("times: expected at least two different exposure times")
+    for k, im in enumerate(imgs):
+        if im.dtype != np.uint8 or im.ndim != 3 or im.shape[2] != 3:
+            raise RaytraceError(f"images[{k}]: expected an (H, W, 3) uint8 RGB image, got {im.dtype} {im.shape}")
+        if im.shape != imgs[0].shape:
+            raise RaytraceError(f"images[{k}]: expected the size of images[0], {imgs[0].shape[1]}×{imgs[0].shape[0]}, "
+                                f"got {im.shape[1]}×{im.shape[0]}")
+    calibrate = cv2.createCalibrateDebevec(int(samples), float(smoothness), False)
+    curve = calibrate.process([np.ascontiguousarray(im[:, :, ::-1]) for im in imgs], times.astype(np.float32))
+    curve = np.maximum.accumulate(np.asarray(curve, dtype=np.float64).reshape(256, 3)[:, ::-1], axis=0)  # RGB
+    response = as_response(curve.T.tolist(), "the calibrated response")
+    return response, _agreement(response, imgs, times)
+
+
+def _agreement(response: CameraResponse, imgs: list, times: np.ndarray) -> dict | None:
+    """`calibrate_response`'s agreement: |log| of the ratio of two successive exposures' light per unit time,
+    over the pixels both have well exposed in every channel."""
+    lo, hi = WELL_EXPOSED
+    order = np.argsort(times)
+    ratios = []
+    for a, b in zip(order[:-1], order[1:]):
+        ia, ib = imgs[a], imgs[b]
+        ok = np.all((ia >= lo) & (ia <= hi) & (ib >= lo) & (ib <= hi), axis=-1)
+        if ok.any():
+            la, lb = response.to_linear(ia[ok]) / times[a], response.to_linear(ib[ok]) / times[b]
+            ratios.append(np.abs(np.log(lb / la)).ravel())
+    if not ratios:
+        return None
+    r = np.concatenate(ratios)
+    return {"median": float(np.expm1(np.median(r))), "p90": float(np.expm1(np.percentile(r, 90))), "values": len(r)}
