@@ -1,7 +1,7 @@
 """The command line: `main(argv)` parses, calls the library, prints, and exits 1 on a known error.
 
-Verbs: simulate, fit, design, reconstruct, report, demo. Errors of our packages print as one line,
-`catadioptric: error: <message>`, with no traceback.
+Verbs: simulate, fit, design, reconstruct, report, response, demo, depthmap. Errors of our packages print as one
+line, `catadioptric: error: <message>`, with no traceback.
 """
 
 from __future__ import annotations
