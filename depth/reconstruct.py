@@ -635,11 +635,14 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
                              "has none")
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1):
         raise DepthError(f"workers: expected an integer >= 1, got {workers!r}")
-    raw = _image_array(image, camera.resolution)
+    raw = stored = _image_array(image, camera.resolution)
     if getattr(camera, "response", None) is not None:
         # a camera that does not store sRGB (`raytrace.response`): its values re-encoded as the sRGB values of
-        # their light, which everything below reads
-        raw = camera.response.as_srgb(raw if raw.dtype == np.uint8 else check_image(raw, camera.resolution))
+        # their light, which everything below reads; but a JPEG image's cubes are found on its codes as stored,
+        # where the coder's artefacts are as it made them (decoded through a flat stretch of the curve they grow
+        # in light, and cut faces: `bench_response`'s JPEG readings)
+        stored = raw if raw.dtype == np.uint8 else check_image(raw, camera.resolution)
+        raw = camera.response.as_srgb(stored)
     # The faces are outlined and estimated by a helper process (`depth.workers.fork_helper`), which imports
     # scipy's modules and the estimators' (0.5–0.6 s) while this process detects the cubes (which needs none
     # of them), then forks the workers: the one `start_helper` forked before the image was read, else on a
@@ -658,7 +661,8 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
             helper.send((_helper_faces, (memory, raw.shape, camera, mirror, method, cube_size, progress is not None,
                                          compressed, blur_domain, workers, floor, setup_std is not None)))
         img = check_image(raw, camera.resolution, out=out[0])
-        det_img = despeckled(raw if raw.dtype == np.uint8 else img, out=out[-1]) if compressed else img
+        found_on = stored if stored is not raw or raw.dtype == np.uint8 else img
+        det_img = despeckled(found_on, out=out[-1]) if compressed else img
         scipy_imported = import_in_background(SOLVER_MODULES) if helper is None else None
         # checked here once: not again by each face's outline, silhouette, blur evidence and regrowth
         with checked_images(img, det_img):
