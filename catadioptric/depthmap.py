@@ -63,9 +63,8 @@ def run_depthmap(image_path, xslit: dict, output, method: str = "graphcut", lam:
     out = Path(output)
     if out.suffix.lower() != ".png":
         raise CatadioptricError(f"{out}: -o: expected an output file name ending in .png")
-    img = cv2.imread(str(image_path), cv2.IMREAD_COLOR)
-    if img is None:
-        raise CatadioptricError(f"{image_path}: cannot read the image")
+    from catadioptric.reconstruct import decode_image_file
+    img = decode_image_file(image_path, cv2.IMREAD_COLOR, expected="an XSlit image, PNG or JPEG")
     gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).astype(np.float64) / 255.0
     h, w = gray.shape
     xs = XSlit.from_degrees(float(xslit["z1"]), float(xslit["z2"]), float(xslit.get("theta1_deg", 0.0)),

@@ -6,7 +6,10 @@ JSON result of SETUP_FORMAT.md (and optionally an annotated overlay image), all 
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
+import sys
 from pathlib import Path
 
 import cv2
@@ -16,7 +19,7 @@ from catadioptric.errors import CatadioptricError
 from catadioptric.outputs import OutputSet
 from catadioptric.setup import load_setup
 
-__all__ = ["read_image", "default_setup_path", "run_reconstruction", "result_dict", "draw_overlay",
+__all__ = ["decode_image_file", "read_image", "default_setup_path", "run_reconstruction", "result_dict", "draw_overlay",
            "print_table", "write_outputs"]
 
 
@@ -26,17 +29,42 @@ def is_jpeg(path) -> bool:
         return f.read(3) == b"\xff\xd8\xff"
 
 
-def read_image(path) -> np.ndarray:
-    """An 8-bit RGB image file as (H, W, 3) uint8; one-line errors for anything else."""
+@contextlib.contextmanager
+def _stderr_silenced():
+    """File descriptor 2 pointed at the null device meanwhile: C libraries write there, not to `sys.stderr`."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+def decode_image_file(path, flags=cv2.IMREAD_UNCHANGED, expected="an 8-bit RGB PNG or JPEG") -> np.ndarray:
+    """The image file at `path` decoded by `cv2.imdecode` with `flags` (as stored by default: OpenCV's channel
+    order, any depth); one-line errors for a missing, empty or undecodable file or a folder, the last saying what
+    was `expected`. What the decoders print on a broken file (libpng's "PNG input buffer is incomplete", OpenCV's
+    warnings) is kept off the process's stderr: the error says it instead."""
     path = Path(path)
     if not path.exists():
         raise CatadioptricError(f"{path}: no such image file")
     data = np.fromfile(path, dtype=np.uint8) if path.is_file() else None
     if data is None or data.size == 0:
         raise CatadioptricError(f"{path}: expected an image file, got {'a folder' if path.is_dir() else 'an empty file'}")
-    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    with _stderr_silenced():
+        img = cv2.imdecode(data, flags)
     if img is None:
-        raise CatadioptricError(f"{path}: cannot read the image (expected an 8-bit RGB PNG or JPEG)")
+        raise CatadioptricError(f"{path}: cannot read the image (expected {expected})")
+    return img
+
+
+def read_image(path) -> np.ndarray:
+    """An 8-bit RGB image file as (H, W, 3) uint8; one-line errors for anything else."""
+    path = Path(path)
+    img = decode_image_file(path)
     if img.dtype != np.uint8:
         raise CatadioptricError(f"{path}: expected an 8-bit image, got {img.dtype.itemsize * 8}-bit")
     if img.ndim == 2 or img.shape[2] == 1:

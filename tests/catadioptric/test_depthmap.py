@@ -113,7 +113,7 @@ def _bad_cases(tmp_path, image, setup):
     no_z2 = tmp_path / "noz2.toml"
     no_z2.write_text("[xslit]\nz1 = -1.0\npitch = 0.01\n")
     return [
-        ((tmp_path / "missing.png", "--setup", setup), "cannot read the image"),
+        ((tmp_path / "missing.png", "--setup", setup), "missing.png: no such image file"),
         ((image, "--setup", tmp_path / "missing.toml"), "cannot read"),
         ((image, "--setup", no_z2), r"\[xslit\]\.z2: missing"),
         ((image,), "give --setup"),
