@@ -474,6 +474,10 @@ def main(argv=None, *, one_shot: bool = False) -> int:
             return 1
         _to_nowhere(sys.stdout)  # whatever read the output stopped reading (`| head`): end quietly, as Unix
         return 1  # tools do
+    except OSError as exc:  # a file the command could not read or write (a folder it may not write in)
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"catadioptric: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 1
 
 
 def console() -> None:

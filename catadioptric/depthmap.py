@@ -19,12 +19,14 @@ reaches) beside it.
 
 from __future__ import annotations
 
+import io
 import tomllib
 from pathlib import Path
 
 import numpy as np
 
 from catadioptric.errors import CatadioptricError
+from catadioptric.outputs import OutputSet
 
 __all__ = ["load_xslit_table", "run_depthmap"]
 
@@ -96,10 +98,18 @@ def run_depthmap(image_path, xslit: dict, output, method: str = "graphcut", lam:
     norm = (d.depth - lo) / max(hi - lo, 1e-12)
     colour = matplotlib.colormaps["turbo_r"](np.nan_to_num(norm, nan=0.0))[:, :, :3]
     colour[~np.isfinite(d.depth)] = 0.0
-    out.parent.mkdir(parents=True, exist_ok=True)
-    np.save(npy, d.depth)
-    if not cv2.imwrite(str(out), (colour[:, :, ::-1] * 255).round().astype(np.uint8)):
-        raise CatadioptricError(f"{out}: cannot write the image")
+    ok, png = cv2.imencode(".png", (colour[:, :, ::-1] * 255).round().astype(np.uint8))
+    if not ok:
+        raise CatadioptricError(f"{out}: cannot encode the image")
+    depth_file = io.BytesIO()
+    np.save(depth_file, d.depth)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CatadioptricError(f"{out}: -o: cannot make the folder {out.parent} ({exc.strerror})") from None
+    with OutputSet() as o:  # both files or neither (the image renamed into place first: the likelier refused)
+        o.write_bytes(out, png.tobytes())
+        o.write_bytes(npy, depth_file.getvalue())
     return {"png": str(out), "npy": str(npy), "segments": int(len(cues.segments)),
             "segments_with_depth": int(cues.valid.sum()), "superpixels": int(d.graph.n),
             "depth_min": lo, "depth_max": hi, "method": method}

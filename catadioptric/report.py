@@ -381,7 +381,10 @@ def write_report(files: dict, out_dir) -> Path:
     out = check_output_dir(out_dir)
     created = not out.exists()
     if created:
-        out.mkdir()
+        try:
+            out.mkdir()
+        except OSError as exc:
+            raise CatadioptricError(f"{out}: cannot make the report's folder ({exc.strerror})") from None
     try:
         with OutputSet() as o:
             for name, data in files.items():

@@ -102,7 +102,7 @@ def write_simulation(sim: Simulation, out_png) -> list[Path]:
     paths = output_paths(out_png)
     with OutputSet() as out:
         _write_rest(out, sim, paths)
-        with NpzWriter(out.path_for(paths["gt"])) as npz:
+        with out.writing(paths["gt"]) as gt_path, NpzWriter(gt_path) as npz:
             for name, arr in _gt_arrays(sim.render).items():
                 npz.add(name, arr)
     return list(paths.values())
@@ -128,7 +128,7 @@ def simulate_to_files(setup: Setup, out_png, spp: int = 4, seed: int = 0, progre
         return sim, write_simulation(sim, out_png)
     from concurrent.futures import ThreadPoolExecutor
     with OutputSet() as out, ThreadPoolExecutor(1) as thread:
-        with NpzWriter(out.path_for(paths["gt"]), mapped=shapes) as npz:
+        with out.writing(paths["gt"]) as gt_path, NpzWriter(gt_path, mapped=shapes) as npz:
             sim = simulate(setup, spp=spp, seed=seed, progress=progress, workers=workers, out=npz.arrays)
             png = thread.submit(_png, sim)  # zlib and numpy release the GIL: encode beside the npz
             gt = _gt_arrays(sim.render)

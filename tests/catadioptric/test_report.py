@@ -13,6 +13,7 @@ import pytest
 import tomli_w
 
 from catadioptric.cli import main
+from catadioptric.errors import CatadioptricError
 
 pv = pytest.importorskip("pyvista")
 
@@ -382,7 +383,7 @@ def test_failure_while_writing_leaves_no_folder(tmp_path, monkeypatch):
             raise OSError("disk full")
         return real(self, data)
     monkeypatch.setattr(Path, "write_bytes", flaky)
-    with pytest.raises(OSError, match="disk full"):
+    with pytest.raises(CatadioptricError, match=r"rep/b\.png: cannot write \(disk full\)$"):
         report.write_report(files, tmp_path / "rep")
     assert not (tmp_path / "rep").exists()
 
