@@ -44,9 +44,21 @@ _LOCK = threading.Lock()  # one `fork_map` pool at a time per process (it owns `
 _IN_WORKER = False  # set in the workers: a task that calls `fork_map` runs it serially
 
 
+def opencv_serial() -> None:
+    """OpenCV's own thread pool turned off in this (forked) process, where the parent had OpenCV loaded. A
+    process forked while one of the parent's OpenCV pool threads held the pool's lock inherits the lock held, and
+    its first parallel OpenCV call waits for ever (opencv/opencv#5150): `bench.holdout` hung so, in a worker's
+    `cv2.connectedComponentsWithStats`, with the machine busy; a parent running one parallel OpenCV call before each
+    fork hung 2 of 300 children under load, none of 300 with this. The forked processes are one per core already."""
+    cv2 = sys.modules.get("cv2")
+    if cv2 is not None:
+        cv2.setNumThreads(0)
+
+
 def _worker_start() -> None:
     global _IN_WORKER
     _IN_WORKER = True
+    opencv_serial()
     keep_freed_memory()
 
 
@@ -317,6 +329,7 @@ class Inbox:
 
 
 def _helper_main(conn, task, modules, parent_end) -> None:
+    opencv_serial()
     parent_end.close()  # (inherited: held here, it would keep `recv` from seeing the parent leave)
     _own_group(os.getpid())
     for name in modules:

@@ -421,3 +421,26 @@ def test_a_helper_that_dies_is_reported_not_waited_for(tmp_path, monkeypatch):
     helper = fork_helper(lambda payload, progress, inbox: os._exit(3), ["helper_mod3"])
     with pytest.raises(RuntimeError, match="ended without a result"):
         helper.run(1)
+
+
+def test_forked_workers_and_helpers_run_opencv_without_its_thread_pool(tmp_path, monkeypatch):
+    """A process forked while the parent's OpenCV pool held its lock would wait for ever on its first parallel
+    OpenCV call (`depth.workers.opencv_serial`): the workers and helpers run OpenCV serially, this process as
+    before."""
+    import cv2
+
+    from depth.workers import fork_helper
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(2)
+    try:
+        cv2.GaussianBlur(np.ones((256, 256), np.float32), (0, 0), 2.0)  # the pool in use here before the forks
+        out = fork_map(lambda i: (cv2.getNumThreads(), os.getpid()), 2, workers=2)
+        assert {threads for threads, _ in out} == {1} and os.getpid() not in {pid for _, pid in out}
+        _fresh_module(tmp_path, monkeypatch, "helper_mod_cv")
+        helper = fork_helper(lambda payload, progress, inbox: (cv2.getNumThreads(), os.getpid()), ["helper_mod_cv"])
+        assert helper is not None
+        threads, pid = helper.run(None)
+        assert threads == 1 and pid != os.getpid()
+        assert cv2.getNumThreads() == 2
+    finally:
+        cv2.setNumThreads(before)
