@@ -144,6 +144,45 @@ def _response(d: dict, w: _Where):
 
 
 @dataclass(frozen=True)
+class ChannelConfig:
+    """`[camera.red]` or `[camera.blue]`: that colour channel's own intrinsics (lateral chromatic aberration,
+    `raytrace.chroma`), each key defaulting to the camera's, which are green's."""
+
+    focal_px: tuple[float, float] | None = None
+    principal_px: tuple[float, float] | None = None
+    distortion: tuple[float, ...] | None = None
+
+    KEYS: ClassVar[set] = {"focal_px", "principal_px", "distortion"}
+
+    @classmethod
+    def from_dict(cls, d: Any, w: _Where, name: str) -> "ChannelConfig":
+        d = _table(d, w, w.key(name))
+        w = w.child(name)
+        _no_unknown(d, cls.KEYS, w)
+        if not d:
+            raise SetupError(f"{w.source}: {w.prefix.rstrip('.')}: expected at least one of focal_px, principal_px, "
+                             "distortion (that channel's own; without the table it is the camera's)")
+        return cls(focal_px=_vector(d, "focal_px", w, 2, positive=True) if "focal_px" in d else None,
+                   principal_px=_vector(d, "principal_px", w, 2) if "principal_px" in d else None,
+                   distortion=_distortion(d, w))
+
+    def to_dict(self) -> dict:
+        d = {}
+        for key in ("focal_px", "principal_px", "distortion"):
+            if getattr(self, key) is not None:
+                d[key] = list(getattr(self, key))
+        return d
+
+    def build(self, camera: "CameraConfig"):
+        """The `raytrace.chroma.ChannelLens` of this channel of `camera`."""
+        from raytrace.chroma import ChannelLens
+        fx, fy = self.focal_px if self.focal_px is not None else camera.focal_px
+        cx, cy = self.principal_px if self.principal_px is not None else camera.principal
+        distortion = self.distortion if self.distortion is not None else camera.distortion
+        return ChannelLens(np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]]), distortion)
+
+
+@dataclass(frozen=True)
 class CameraConfig:
     """The pinhole camera of `[camera]` (OpenCV conventions)."""
 
@@ -155,9 +194,11 @@ class CameraConfig:
     principal_px: tuple[float, float] | None = None
     distortion: tuple[float, ...] | None = None  # OpenCV's (k1, k2, p1, p2[, k3[, k4, k5, k6]]); None: none
     response: Any = None  # a raytrace.response.CameraResponse; None: sRGB
+    red: ChannelConfig | None = None  # that channel's own intrinsics (lateral chromatic aberration); None: green's
+    blue: ChannelConfig | None = None
 
     KEYS: ClassVar[set] = {"resolution", "focal_px", "principal_px", "position", "look_at", "up", "distortion",
-                           "response"}
+                           "response", "red", "blue"}
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "<dict>", prefix: str = "camera.") -> "CameraConfig":
@@ -172,7 +213,9 @@ class CameraConfig:
                   up=_vector(d, "up", w, 3, nonzero=True),
                   principal_px=_vector(d, "principal_px", w, 2) if "principal_px" in d else None,
                   distortion=_distortion(d, w),
-                  response=_response(d, w))
+                  response=_response(d, w),
+                  red=ChannelConfig.from_dict(d["red"], w, "red") if "red" in d else None,
+                  blue=ChannelConfig.from_dict(d["blue"], w, "blue") if "blue" in d else None)
         view = np.subtract(cam.look_at, cam.position)
         if np.linalg.norm(view) == 0:
             raise w.error("look_at", "a point different from camera.position", list(cam.look_at))
@@ -188,6 +231,16 @@ class CameraConfig:
             if fold is not None:
                 raise w.error("distortion", "coefficients whose distortion is one-to-one over the image (these fold "
                               f"near pixel ({fold[0]:.0f}, {fold[1]:.0f}))", list(cam.distortion))
+        for name in ("red", "blue"):
+            channel = getattr(cam, name)
+            if channel is not None and channel.distortion is not None:
+                from raytrace.camera import distortion_fold
+                lens = channel.build(cam)
+                fold = distortion_fold(cam.resolution, lens.K, lens.distortion)
+                if fold is not None:
+                    raise w.child(name).error("distortion", "coefficients whose distortion is one-to-one over the "
+                                              f"image (these fold near pixel ({fold[0]:.0f}, {fold[1]:.0f}))",
+                                              list(channel.distortion))
         return cam
 
     @property
@@ -206,13 +259,18 @@ class CameraConfig:
             d["distortion"] = list(self.distortion)
         if self.response is not None:
             d["response"] = self.response.to_value()
+        for name in ("red", "blue"):
+            if getattr(self, name) is not None:
+                d[name] = getattr(self, name).to_dict()
         return d
 
     def build(self):
         """The `raytrace.camera.PinholeCamera` of this config."""
         from raytrace.camera import PinholeCamera
         return PinholeCamera.from_look_at(self.resolution, self.focal_px, self.principal,
-                                          self.position, self.look_at, self.up, self.distortion, self.response)
+                                          self.position, self.look_at, self.up, self.distortion, self.response,
+                                          red=self.red.build(self) if self.red is not None else None,
+                                          blue=self.blue.build(self) if self.blue is not None else None)
 
 
 @dataclass(frozen=True)

@@ -568,7 +568,8 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     Parameters
     ----------
     image : (H, W, 3) uint8 or float64 in [0, 1], sRGB (or as `camera.response` stores light)
-    camera : raytrace.camera.PinholeCamera
+    camera : raytrace.camera.PinholeCamera (where its `red` or `blue` channel has a lens of its own, those channels
+        are first resampled onto green's rays: `depth.chroma`)
     mirror : raytrace.mirror.CylinderMirror (or any mirror with `intersect`)
     method : "exact" (default), "ddar", "dds", "shape_prior" or "exact_shape_prior" (the cubes are of one
         unknown size: each face is fitted by `exact`, their sizes fused into one (`depth.priors.common_size`),
@@ -636,6 +637,11 @@ def reconstruct(image, camera, mirror, method: str = DEFAULT_METHOD, cube_size: 
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1):
         raise DepthError(f"workers: expected an integer >= 1, got {workers!r}")
     raw = stored = _image_array(image, camera.resolution)
+    if getattr(camera, "has_channel_lenses", False):
+        # a lens that images red or blue apart from green (`raytrace.chroma`): those channels resampled where they
+        # image green's rays, as the camera stores light, before anything reads the image (`depth.chroma`)
+        from depth.chroma import aligned_to_green
+        raw = stored = aligned_to_green(raw, camera)
     if getattr(camera, "response", None) is not None:
         # a camera that does not store sRGB (`raytrace.response`): its values re-encoded as the sRGB values of
         # their light, which everything below reads; but a JPEG image's cubes are found on its codes as stored,

@@ -101,3 +101,15 @@ def as_resolution(value, name: str = "resolution") -> tuple[int, int]:
     if wi != w or hi != h or wi <= 0 or hi <= 0:
         raise RaytraceError(f"{name}: expected two positive integers, got {value!r}")
     return wi, hi
+
+
+def as_intrinsics(value, name: str = "K") -> np.ndarray:
+    """A pinhole's 3×3 intrinsic matrix [[fx, s, cx], [0, fy, cy], [0, 0, 1]] as float64, fx and fy positive."""
+    K = np.asarray(value, dtype=np.float64)
+    if K.shape != (3, 3) or not np.all(np.isfinite(K)):
+        raise RaytraceError(f"{name}: expected a finite 3x3 matrix, got shape {K.shape}")
+    if not (K[0, 0] > 0 and K[1, 1] > 0):
+        raise RaytraceError(f"{name}: expected positive focal lengths fx, fy, got {K[0, 0]}, {K[1, 1]}")
+    if not np.allclose(K[2], [0.0, 0.0, 1.0]) or K[1, 0] != 0:
+        raise RaytraceError(f"{name}: expected an upper-triangular matrix with last row [0, 0, 1]")
+    return K

@@ -17,6 +17,7 @@ import numpy as np
 
 from ._validate import (
     as_finite,
+    as_intrinsics,
     as_points,
     as_positive,
     as_resolution,
@@ -24,6 +25,7 @@ from ._validate import (
     as_vector,
 )
 from .errors import RaytraceError
+from .chroma import CHANNELS, ChannelLens, as_channel_lens
 from .lens import as_distortion, distort, distortion_jacobian, undistort
 from .response import CameraResponse, as_response
 
@@ -160,6 +162,9 @@ class PinholeCamera:
     response : raytrace.response.CameraResponse or None
         How the 8-bit values of its images relate to linear light (`as_response`'s values are accepted);
         None (or "srgb"): sRGB.
+    red, blue : raytrace.chroma.ChannelLens or None
+        That colour channel's own K and distortion (lateral chromatic aberration, `raytrace.chroma`), where
+        `K` and `distortion` are green's; None: the camera's own.
     """
 
     resolution: tuple[int, int]
@@ -168,32 +173,46 @@ class PinholeCamera:
     position: np.ndarray
     distortion: np.ndarray | None = None
     response: CameraResponse | None = None
+    red: ChannelLens | None = None
+    blue: ChannelLens | None = None
     is_central: bool = field(default=True, init=False, repr=False)
 
     def __post_init__(self):
         object.__setattr__(self, "resolution", as_resolution(self.resolution))
-        K = np.asarray(self.K, dtype=np.float64)
-        if K.shape != (3, 3) or not np.all(np.isfinite(K)):
-            raise RaytraceError(f"K: expected a finite 3x3 matrix, got shape {K.shape}")
-        if not (K[0, 0] > 0 and K[1, 1] > 0):
-            raise RaytraceError(f"K: expected positive focal lengths fx, fy, got {K[0, 0]}, {K[1, 1]}")
-        if not np.allclose(K[2], [0.0, 0.0, 1.0]) or K[1, 0] != 0:
-            raise RaytraceError("K: expected an upper-triangular matrix with last row [0, 0, 1]")
-        object.__setattr__(self, "K", K)
+        object.__setattr__(self, "K", as_intrinsics(self.K))
         object.__setattr__(self, "R", as_rotation(self.R, "R"))
         object.__setattr__(self, "position", as_vector(self.position, "position"))
         object.__setattr__(self, "distortion", as_distortion(self.distortion))
         object.__setattr__(self, "response", as_response(self.response))
         if self.distortion is not None:
-            self._check_one_to_one()
+            self._check_one_to_one(self.K, self.distortion, "distortion")
+        for channel in CHANNELS:
+            lens = as_channel_lens(getattr(self, channel), channel)
+            if lens is not None and lens.distortion is not None:
+                self._check_one_to_one(lens.K, lens.distortion, f"{channel}.distortion")
 
-    def _check_one_to_one(self) -> None:
+    def _check_one_to_one(self, K, distortion, name) -> None:
         """Raise unless the distortion is one-to-one over the image (`distortion_fold`)."""
-        fold = distortion_fold(self.resolution, self.K, self.distortion)
+        fold = distortion_fold(self.resolution, K, distortion)
         if fold is not None:
-            raise RaytraceError(f"distortion: expected coefficients whose distortion is one-to-one over the image; "
+            raise RaytraceError(f"{name}: expected coefficients whose distortion is one-to-one over the image; "
                                 f"it folds near pixel ({fold[0]:.0f}, {fold[1]:.0f}) "
-                                f"(coefficients {self.distortion.tolist()})")
+                                f"(coefficients {distortion.tolist()})")
+
+    @property
+    def has_channel_lenses(self) -> bool:
+        """Whether a colour channel images the scene through a lens of its own (`red`, `blue`)."""
+        return self.red is not None or self.blue is not None
+
+    def channel_camera(self, channel: str) -> "PinholeCamera":
+        """The camera `channel` ("red", "green" or "blue") sees the scene through: this one's pose, response and
+        resolution with that channel's K and distortion (its own where it has none), and no channel lenses."""
+        if channel not in ("green",) + CHANNELS:
+            raise RaytraceError(f"channel: expected red, green or blue, got {channel!r}")
+        lens = None if channel == "green" else getattr(self, channel)
+        if lens is None:
+            return PinholeCamera(self.resolution, self.K, self.R, self.position, self.distortion, self.response)
+        return PinholeCamera(self.resolution, lens.K, self.R, self.position, lens.distortion, self.response)
 
     def undistorted_pixels(self, pixels) -> np.ndarray:
         """Where this camera without its distortion images what it images at `pixels` (N, 2): (N, 2) pixels."""
@@ -205,7 +224,7 @@ class PinholeCamera:
 
     @classmethod
     def from_look_at(cls, resolution, focal_px, principal_px=None, position=None, look_at=None, up=(0.0, 1.0, 0.0),
-                     distortion=None, response=None):
+                     distortion=None, response=None, red=None, blue=None):
         """Build a camera from the setup contract's keys.
 
         Parameters
@@ -216,6 +235,7 @@ class PinholeCamera:
         principal_px : (cx, cy) or None for ((W-1)/2, (H-1)/2)
         distortion : OpenCV's (k1, k2, p1, p2[, k3[, k4, k5, k6]]) or None for an ideal pinhole
         response : how its 8-bit values relate to linear light (`raytrace.response.as_response`); None: sRGB
+        red, blue : that colour channel's own `raytrace.chroma.ChannelLens`, or None
         """
         w, h = as_resolution(resolution)
         f = np.atleast_1d(np.asarray(focal_px, dtype=np.float64)) if focal_px is not None else None
@@ -246,7 +266,7 @@ class PinholeCamera:
         y = np.cross(z, x)
         K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
         return cls(resolution=(w, h), K=K, R=np.stack([x, y, z]), position=position, distortion=distortion,
-                   response=response)
+                   response=response, red=red, blue=blue)
 
     @property
     def width(self) -> int:

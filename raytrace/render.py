@@ -682,6 +682,27 @@ def _check_int(value, name, lo):
     return int(value)
 
 
+def _render_channels(scene, camera, spp, seed, bounces, progress, workers, backend, adaptive, out) -> Render:
+    """`render` of a camera whose red or blue channel has a lens of its own (`raytrace.chroma`): the scene rendered
+    through green's camera (the image, every truth array and the rays counted), then through each such channel's,
+    whose render gives that channel of the image. The progress runs once over the renders."""
+    lensed = [(k, name) for k, name in ((0, "red"), (2, "blue")) if getattr(camera, name) is not None]
+    parts = 1 + len(lensed)
+
+    def part(i):
+        if progress is None:
+            return None
+        return lambda done, total: progress(i * total + done, parts * total)
+
+    result = render(scene, camera.channel_camera("green"), spp, seed, bounces, part(0), workers, backend, adaptive,
+                    out)
+    for i, (k, name) in enumerate(lensed, start=1):
+        other = render(scene, camera.channel_camera(name), spp, seed, bounces, part(i), workers, backend, adaptive)
+        result.image[..., k] = other.image[..., k]
+        result.rays_traced += other.rays_traced
+    return result
+
+
 def render(
     scene: Scene,
     camera,
@@ -723,6 +744,8 @@ def render(
         raise RaytraceError(f"scene: expected a raytrace.scene.Scene, got {type(scene).__name__}")
     if not hasattr(camera, "rays") or not hasattr(camera, "resolution"):
         raise RaytraceError("camera: expected a camera with `resolution` and `rays(pixels)`")
+    if getattr(camera, "has_channel_lenses", False):
+        return _render_channels(scene, camera, spp, seed, bounces, progress, workers, backend, adaptive, out)
     spp = _check_int(spp, "spp", 1)
     seed = _check_int(seed, "seed", 0)
     bounces = _check_int(bounces, "bounces", 0)

@@ -68,14 +68,17 @@ class CameraResponse:
     def __hash__(self) -> int:
         return hash((self.kind, self.gamma, None if self.table is None else self.table.tobytes()))
 
-    def to_linear(self, values) -> np.ndarray:
+    def to_linear(self, values, channel: int | None = None) -> np.ndarray:
         """The light of stored values: (..., 3) uint8 codes, or float64 stored values in [0, 1] (a table's
-        curve then interpolated between codes) → (..., 3) float64 in [0, 1]."""
+        curve then interpolated between codes) → (..., 3) float64 in [0, 1]. With `channel` (0, 1 or 2), `values`
+        are that channel's alone, (...) → (...)."""
         values = np.asarray(values)
         if self.kind == "table":
             if values.dtype == np.uint8:
-                return self.table[values, np.arange(3)]
+                return self.table[values, np.arange(3)] if channel is None else self.table[values, channel]
             x = np.clip(values.astype(np.float64), 0.0, 1.0)
+            if channel is not None:
+                return np.interp(x, CODES, self.table[:, channel])
             return np.stack([np.interp(x[..., k], CODES, self.table[:, k]) for k in range(3)], axis=-1)
         x = values / 255.0 if values.dtype == np.uint8 else np.clip(values.astype(np.float64), 0.0, 1.0)
         return x if self.kind == "linear" else x ** self.gamma
@@ -89,19 +92,25 @@ class CameraResponse:
             return lut[values, np.arange(3)]
         return linear_to_srgb(self.to_linear(values))
 
-    def encode8(self, linear) -> np.ndarray:
+    def encode8(self, linear, channel: int | None = None) -> np.ndarray:
         """Light (..., 3) in [0, 1] (clipped) → the (..., 3) uint8 codes this camera stores: its curve's inverse
         rounded to the nearest code, as a camera rounds what its curve makes of the light (a table's curve is
-        piecewise linear between codes; on a flat run, the run's first code)."""
+        piecewise linear between codes; on a flat run, the run's first code). With `channel` (0, 1 or 2), `linear`
+        is that channel's alone, (...) → (...)."""
         x = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0)
         if self.kind != "table":
             stored = x if self.kind == "linear" else x ** (1.0 / self.gamma)
             return np.round(stored * 255.0).astype(np.uint8)
+
+        def codes(light, t):
+            code = np.round(np.interp(light, t, np.arange(256.0))).astype(np.intp)
+            return np.searchsorted(t, t[code], side="left").astype(np.uint8)
+
+        if channel is not None:
+            return codes(x, self.table[:, channel])
         out = np.empty(x.shape, dtype=np.uint8)
         for k in range(3):
-            t = self.table[:, k]
-            code = np.round(np.interp(x[..., k], t, np.arange(256.0))).astype(np.intp)
-            out[..., k] = np.searchsorted(t, t[code], side="left")
+            out[..., k] = codes(x[..., k], self.table[:, k])
         return out
 
     def to_value(self):

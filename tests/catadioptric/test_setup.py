@@ -67,6 +67,27 @@ def test_the_camera_response_is_optional_and_round_trips(valid_setup, write_setu
                                    np.broadcast_to(light_of_128, (3,)), rtol=1e-13)
 
 
+def test_a_channel_s_own_lens_is_optional_round_trips_and_defaults_to_the_camera_s(valid_setup, write_setup,
+                                                                                      tmp_path):
+    """`[camera.red]` / `[camera.blue]` (an extension): that channel's focal_px, principal_px and distortion, each
+    defaulting to the camera's (green's), kept through a round trip and built into the camera's channel lenses."""
+    assert load_setup(write_setup(valid_setup)).camera.build().has_channel_lenses is False
+    valid_setup["camera"]["distortion"] = [-0.1, 0.0, 0.0, 0.0]
+    valid_setup["camera"]["red"] = {"focal_px": [350.2, 350.3]}
+    valid_setup["camera"]["blue"] = {"principal_px": [79.0, 60.0], "distortion": [-0.11, 0.0, 0.0, 0.0, 0.001]}
+    s = load_setup(write_setup(valid_setup))
+    p = tmp_path / "again.toml"
+    save_setup(s, p)
+    assert load_setup(p) == s and "[camera.red]" in p.read_text() and "[camera.blue]" in p.read_text()
+    cam = s.camera.build()
+    fx, fy = valid_setup["camera"]["focal_px"]
+    np.testing.assert_array_equal(cam.red.K, [[350.2, 0.0, 79.5], [0.0, 350.3, 59.5], [0.0, 0.0, 1.0]])
+    np.testing.assert_array_equal(cam.red.distortion[:4], [-0.1, 0.0, 0.0, 0.0])  # the camera's
+    np.testing.assert_array_equal(cam.blue.K, [[fx, 0.0, 79.0], [0.0, fy, 60.0], [0.0, 0.0, 1.0]])
+    np.testing.assert_array_equal(cam.blue.distortion[:5], [-0.11, 0.0, 0.0, 0.0, 0.001])
+    np.testing.assert_array_equal(cam.K, [[fx, 0.0, 79.5], [0.0, fy, 59.5], [0.0, 0.0, 1.0]])  # green's, as given
+
+
 def test_builtin_demo_setup_is_valid():
     from importlib.resources import files
     s = load_setup(files("catadioptric") / "data" / "demo.toml")
@@ -115,6 +136,14 @@ BAD = [
     ("camera.response", [0.0, 0.5, 1.0], "camera.response: expected .* a table of 256 numbers .* got an array of "
                                          "shape \\(3,\\)"),
     ("camera.response", [1.0] * 256, "camera.response: expected a table rising with the code .* channel 0 is flat"),
+    ("camera.red", [1.0], "camera.red: expected a table, got list"),
+    ("camera.red", {}, "camera.red: expected at least one of focal_px, principal_px, distortion"),
+    ("camera.red", {"focal": [350.0, 350.0]}, "camera.red.focal: unknown key"),
+    ("camera.blue", {"focal_px": [350.0, -1.0]}, "camera.blue.focal_px: expected a list of 2 positive numbers"),
+    ("camera.blue", {"principal_px": [79.5]}, "camera.blue.principal_px: expected a list of 2 finite numbers"),
+    ("camera.blue", {"distortion": [0.1]}, "camera.blue.distortion: expected a list of 4, 5 or 8 numbers"),
+    ("camera.red", {"distortion": [-5.0, 0.0, 0.0, 0.0]}, "camera.red.distortion: expected coefficients whose "
+                                                           "distortion is one-to-one over the image \\(these fold"),
     ("camera.position", [0.0, 0.0, 0.05], "camera.position: expected a point outside the mirror"),
     ("camera.look_at", [0.0, 0.0, 1.5], "camera.look_at: expected the camera to look at the mirror"),
     ("mirror.radius", -0.1, "mirror.radius: expected a positive number"),

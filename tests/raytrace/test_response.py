@@ -69,6 +69,24 @@ def test_a_table_is_scaled_to_its_top_code_and_read_per_channel():
     assert isinstance(one.to_value()[0], float) and as_response(one.to_value()) == one  # one curve stays one list
 
 
+def test_one_channel_reads_and_stores_by_its_own_curve():
+    """`to_linear` / `encode8` with `channel`: that channel's values alone, by that channel's curve (R, G, B as
+    x^1.8, x^2.2, x^2.6 here, written out), codes and floats; a gamma's alike for every channel."""
+    x = np.arange(256) / 255.0
+    table = as_response(np.stack([x ** 1.8, x ** 2.2, x ** 2.6]).tolist())
+    codes = np.array([[0, 37, 128], [200, 254, 255]], dtype=np.uint8)
+    floats = codes / 255.0 + 0.3 / 255.0  # between codes: each curve interpolated
+    for k, power in enumerate((1.8, 2.2, 2.6)):
+        np.testing.assert_allclose(table.to_linear(codes, channel=k), (codes / 255.0) ** power, rtol=1e-13)
+        lo, hi = (np.minimum(codes.astype(int) + d, 255) / 255.0 for d in (0, 1))
+        np.testing.assert_allclose(table.to_linear(floats, channel=k),
+                                   np.where(codes == 255, 1.0, 0.7 * lo ** power + 0.3 * hi ** power), rtol=1e-12)
+        np.testing.assert_array_equal(table.encode8((codes / 255.0) ** power, channel=k), codes)
+    gamma = as_response(2.0)
+    np.testing.assert_allclose(gamma.to_linear(codes, channel=2), (codes / 255.0) ** 2.0, rtol=1e-13)
+    np.testing.assert_array_equal(gamma.encode8((codes / 255.0) ** 2.0, channel=1), codes)
+
+
 def test_an_srgb_table_reads_as_the_default():
     """A table of the sRGB curve itself re-encodes every code to its own value: the pipeline reads such a camera's
     image as it reads the default's."""
