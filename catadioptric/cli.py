@@ -1,6 +1,6 @@
 """The command line: `main(argv)` parses, calls the library, prints, and exits 1 on a known error.
 
-Verbs: simulate, fit, design, reconstruct, report, response, demo, depthmap. Errors of our packages print as one
+Verbs: simulate, fit, design, reconstruct, report, response, lens, demo, depthmap. Errors of our packages print as one
 line, `catadioptric: error: <message>`, with no traceback.
 """
 
@@ -316,6 +316,63 @@ def _response_toml(response, agreement, n_images: int) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _board_size(text: str) -> tuple[int, int]:
+    """A chessboard's inner corners as COLSxROWS ("9x6")."""
+    cols, sep, rows = text.lower().replace("×", "x").partition("x")
+    try:
+        size = (int(cols), int(rows))
+    except ValueError:
+        size = None
+    if not sep or size is None or min(size) < 3:
+        raise argparse.ArgumentTypeError(f"expected the inner corners as COLSxROWS, each >= 3 (e.g. 9x6), got {text!r}")
+    return size
+
+
+def _cmd_lens(args) -> int:
+    import numpy as np
+
+    from catadioptric import reconstruct as rc
+    from raytrace.chroma import calibrate_channels
+    if not (np.isfinite(args.square) and args.square > 0):
+        raise CatadioptricError(f"--square: expected the squares' side, > 0, got {args.square}")
+    images = [rc.read_image(path) for path in args.images]
+    for path, im in zip(args.images, images):
+        if im.shape != images[0].shape:
+            raise CatadioptricError(f"{path}: expected the size of {args.images[0]}, {images[0].shape[1]}×"
+                                    f"{images[0].shape[0]} pixels, got {im.shape[1]}×{im.shape[0]}")
+    calibration = calibrate_channels(images, args.board, args.square)
+    print(_lens_toml(calibration, args.images, args.board), end="")
+    return 0
+
+
+def _lens_toml(cal, paths, board) -> str:
+    """The `[camera]` lines (focal_px, principal_px, distortion: green's) and `[camera.red]` / `[camera.blue]` tables
+    of a channel calibration, with comments on where they came from and how well they fit."""
+    import numpy as np
+
+    def numbers(values):
+        return "[" + ", ".join(f"{float(v):.10g}" for v in values) + "]"
+
+    def table(K, dist):
+        return [f"focal_px = {numbers([K[0, 0], K[1, 1]])}", f"principal_px = {numbers([K[0, 2], K[1, 2]])}",
+                f"distortion = {numbers(np.ravel(dist)[:5])}"]
+
+    unused = [str(paths[k]) for k in range(len(paths)) if k not in cal.views]
+    rms = cal.rms_px
+    lines = [f"# the lens (catadioptric lens), from {len(cal.views)} of {len(paths)} views of a {board[0]}×{board[1]} "
+             "chessboard" + (f" (not found in: {', '.join(unused)})" if unused else ""),
+             f"# rms reprojection error: green {rms['green']:.3f} px, red {rms['red']:.3f} px, blue {rms['blue']:.3f} px",
+             f"# at the image's farthest corner red images {cal.corner_shift_px['red']:.2f} px and blue "
+             f"{cal.corner_shift_px['blue']:.2f} px from green",
+             f"# the boards spanned {100 * cal.coverage:.0f} % of the image"
+             + ("" if cal.coverage >= 0.5 else ": beyond it the channels are extrapolated; take views nearer the "
+                "image's edges and corners"),
+             "# (merge the [camera] keys into your setup's [camera] table)",
+             "[camera]", *table(cal.K, cal.distortion), "", "[camera.red]", *table(cal.red.K, cal.red.distortion),
+             "", "[camera.blue]", *table(cal.blue.K, cal.blue.distortion)]
+    return "\n".join(lines) + "\n"
+
+
 def _cmd_demo(args) -> int:
     from catadioptric import demo
     return demo.run(args)
@@ -419,6 +476,16 @@ def build_parser() -> argparse.ArgumentParser:
     rs.add_argument("--times", type=_exposure_time, nargs="+", required=True, metavar="T",
                     help="each image's exposure time, in their order (any unit; a fraction such as 1/250 too)")
     rs.set_defaults(func=_cmd_response)
+
+    ln = sub.add_parser("lens", help="a lens's intrinsics from chessboard views, each colour channel's own (lateral "
+                                     "chromatic aberration): prints its [camera] lines")
+    ln.add_argument("images", metavar="IMAGE", nargs="+",
+                    help="views of a flat chessboard in different poses (at least 3 where the board is found)")
+    ln.add_argument("--board", type=_board_size, required=True, metavar="COLSxROWS",
+                    help="the chessboard's inner corners, columns × rows (e.g. 9x6)")
+    ln.add_argument("--square", type=float, default=1.0, metavar="S",
+                    help="the squares' side (any unit: it does not enter the intrinsics; default 1)")
+    ln.set_defaults(func=_cmd_lens)
 
     dm = sub.add_parser("demo", help="run the built-in example")
     dm.add_argument("-o", "--output", metavar="DIR", default=None,

@@ -22,7 +22,7 @@ from ._validate import as_intrinsics
 from .errors import RaytraceError
 from .lens import as_distortion, distort, undistort
 
-__all__ = ["CHANNELS", "ChannelLens", "as_channel_lens", "channel_pixels"]
+__all__ = ["CHANNELS", "ChannelLens", "ChannelCalibration", "as_channel_lens", "channel_pixels", "calibrate_channels"]
 
 CHANNELS = ("red", "blue")
 """The channels that may have a lens of their own, against green (the camera's)."""
@@ -107,3 +107,126 @@ def channel_pixels(camera, channel: str) -> np.ndarray:
     fine = cv2.resize(move, (g * len(nu), g * len(nv)), interpolation=cv2.INTER_LINEAR)  # float64 kept
     out += fine[g:g + h, g:g + w]
     return out
+
+
+@dataclass(frozen=True)
+class ChannelCalibration:
+    """`calibrate_channels`' result: green's intrinsics (the camera's `K` and `distortion`), red's and blue's
+    (`ChannelLens`), each channel's rms reprojection error over the corners (px), the views used (of those given),
+    how far red and blue image the image's farthest corner from green (px), and the share of the image the boards'
+    corners spanned."""
+
+    K: np.ndarray
+    distortion: np.ndarray
+    red: ChannelLens
+    blue: ChannelLens
+    rms_px: dict
+    views: tuple
+    corner_shift_px: dict
+    coverage: float
+
+
+def _board_corners(images, board):
+    """Each view's inner chessboard corners (cols × rows) found on its green channel, refined to sub-pixel on each
+    channel: {view index: (3, N, 2)}."""
+    import cv2
+    found = {}
+    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-4)
+    for k, im in enumerate(images):
+        ok, corners = cv2.findChessboardCorners(np.ascontiguousarray(im[..., 1]), board,
+                                                cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+        if not ok:
+            continue
+        per = [cv2.cornerSubPix(np.ascontiguousarray(im[..., c]), corners.astype(np.float32).copy(), (5, 5), (-1, -1),
+                                criteria).reshape(-1, 2) for c in range(3)]
+        found[k] = np.stack(per).astype(np.float64)
+    return found
+
+
+def _channel_fit(object_points, corners, rvecs, tvecs, K, dist):
+    """A channel's K and distortion as green's changed where a lens's colours differ: its magnification (fx and fy
+    scaled alike), its principal point and its k1 (k2 as well extrapolated worse toward the corners the board did not
+    reach); each view's pose held at green's. Least squares on the channel's
+    corners' reprojection, from green's own. Returns (K, dist, rms px)."""
+    import cv2
+    from scipy.optimize import least_squares
+
+    def lens(x):
+        Kc = np.array([[K[0, 0] * x[0], 0.0, K[0, 2] + x[1]], [0.0, K[1, 1] * x[0], K[1, 2] + x[2]], [0.0, 0.0, 1.0]])
+        dc = np.array(dist, dtype=np.float64)
+        dc[0] += x[3]
+        return Kc, dc
+
+    def residuals(x):
+        Kc, dc = lens(x)
+        out = [cv2.projectPoints(obj.astype(np.float64), rv, tv, Kc, dc)[0].reshape(-1, 2) - seen  # (float32 points
+               for obj, seen, rv, tv in zip(object_points, corners, rvecs, tvecs)]  # project to float32: no Jacobian)
+        return np.concatenate(out).ravel()
+
+    fit = least_squares(residuals, np.array([1.0, 0.0, 0.0, 0.0]), x_scale=[1e-3, 0.1, 0.1, 1e-3], method="lm")
+    Kc, dc = lens(fit.x)
+    return Kc, dc, float(np.sqrt(np.mean(fit.fun.reshape(-1, 2) ** 2) * 2))
+
+
+def calibrate_channels(images, board: tuple[int, int], square: float) -> ChannelCalibration:
+    """Each colour channel's intrinsics from views of a chessboard (lateral chromatic aberration).
+
+    images : sequence of (H, W, 3) uint8 RGB images of a flat chessboard in different poses
+    board : (columns, rows) of its inner corners; square : its squares' side (any unit: it cancels)
+
+    The corners are found on green and refined on each channel (`cv2.cornerSubPix`). Green is calibrated by
+    `cv2.calibrateCamera` (K and k1, k2, p1, p2; k3 held at 0, which few views overfit); red and blue each by least
+    squares on their own corners with every view's pose held at green's, since a lens's channels share the camera's
+    pose and differ only in where each images a ray: green's K and distortion with a magnification, a principal
+    point and a k1 of their own (`_channel_fit`). Views where the board is not found are left out (`views` lists
+    those used); fewer than 3 is an error. `coverage` is the share of the image the boards' corners spanned (the
+    union of each view's hull): beyond it the channels' maps are extrapolated. Raises `RaytraceError` naming the
+    argument on bad input.
+    """
+    import cv2
+    imgs = [np.asarray(im) for im in images]
+    if len(imgs) < 3:
+        raise RaytraceError(f"images: expected at least 3 views of the chessboard, got {len(imgs)}")
+    for k, im in enumerate(imgs):
+        if im.dtype != np.uint8 or im.ndim != 3 or im.shape[2] != 3:
+            raise RaytraceError(f"images[{k}]: expected an (H, W, 3) uint8 RGB image, got {im.dtype} {im.shape}")
+        if im.shape != imgs[0].shape:
+            raise RaytraceError(f"images[{k}]: expected the size of images[0], {imgs[0].shape[1]}×{imgs[0].shape[0]}, "
+                                f"got {im.shape[1]}×{im.shape[0]}")
+    cols, rows = (int(v) for v in board)
+    if cols < 3 or rows < 3 or (cols, rows) != tuple(board):
+        raise RaytraceError(f"board: expected the inner corners' columns and rows, whole numbers >= 3, got {board}")
+    if not (np.isfinite(square) and square > 0):
+        raise RaytraceError(f"square: expected the squares' side, > 0, got {square}")
+    found = _board_corners(imgs, (cols, rows))
+    if len(found) < 3:
+        raise RaytraceError(f"images: the chessboard ({cols}×{rows} inner corners) was found in {len(found)} of "
+                            f"{len(imgs)} views; expected at least 3")
+    grid = np.zeros((cols * rows, 3), np.float32)
+    grid[:, :2] = np.mgrid[0:cols, 0:rows].T.reshape(-1, 2) * square
+    views = sorted(found)
+    objects = [grid] * len(views)
+    h, w = imgs[0].shape[:2]
+    green = [found[k][1].astype(np.float32) for k in views]
+    rms_g, K, dist, rvecs, tvecs = cv2.calibrateCamera(objects, green, (w, h), None, None,
+                                                       flags=cv2.CALIB_FIX_K3)
+    dist = np.ravel(dist)[:5]
+    lenses, rms = {}, {"green": float(rms_g)}
+    for c, name in ((0, "red"), (2, "blue")):
+        Kc, dc, rms[name] = _channel_fit(objects, [found[k][c] for k in views], rvecs, tvecs, K, dist)
+        lenses[name] = ChannelLens(Kc, dc)
+    spanned = np.zeros((h, w), np.uint8)
+    for k in views:
+        cv2.fillConvexPoly(spanned, cv2.convexHull(found[k][1].astype(np.int32)), 1)
+    calibration = ChannelCalibration(K=np.asarray(K, dtype=np.float64), distortion=dist, red=lenses["red"],
+                                     blue=lenses["blue"], rms_px=rms, views=tuple(views), corner_shift_px={},
+                                     coverage=float(spanned.mean()))
+    from .camera import PinholeCamera
+    camera = PinholeCamera((w, h), calibration.K, np.eye(3), np.zeros(3), dist, red=lenses["red"],
+                           blue=lenses["blue"])
+    far = max(((0.0, 0.0), (w - 1.0, 0.0), (0.0, h - 1.0), (w - 1.0, h - 1.0)),
+              key=lambda p: np.hypot(p[0] - calibration.K[0, 2], p[1] - calibration.K[1, 2]))
+    for name in CHANNELS:
+        at = channel_pixels(camera, name)[int(far[1]), int(far[0])]
+        calibration.corner_shift_px[name] = float(np.hypot(at[0] - far[0], at[1] - far[1]))
+    return calibration
