@@ -1,4 +1,4 @@
-"""Embree access: `build_scene` and `first_hits`, the one place where rays become float32.
+"""Embree access: `build_scene`, `commit` and `first_hits`, the one place where rays become float32.
 
 Everything else in `raytrace` stays float64; hits found here are refined in float64 by callers.
 """
@@ -27,3 +27,10 @@ def first_hits(scene, origins: np.ndarray, directions: np.ndarray) -> np.ndarray
     o32 = np.ascontiguousarray(origins, dtype=np.float32)
     d32 = np.ascontiguousarray(directions, dtype=np.float32)
     return np.asarray(scene.run(o32, d32), dtype=np.int64)
+
+
+def commit(scene) -> None:
+    """Build `scene`'s BVH now (embreex builds it on the first query otherwise). Done before processes fork, their
+    queries then only read it: a forked process that builds one itself runs Embree's task scheduler (TBB) as the
+    parent left it, whose worker threads it does not have, and can wait for them for ever."""
+    scene.run(np.zeros((1, 3), np.float32), np.array([[0.0, 0.0, 1.0]], np.float32))

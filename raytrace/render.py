@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._embree import build_scene, first_hits
+from ._embree import build_scene, commit, first_hits
 from .camera import pixel_sample_offsets
 from .errors import RaytraceError
 from .mirror import EPS_T, CylinderMirror, reflect
@@ -209,6 +209,12 @@ class _EmbreeTracer:
             local = np.concatenate([p[2] for p in sel])
             self.scenes[with_mirror] = build_scene(tris)
             self.lookups[with_mirror] = (np.append(gids, -1), np.append(local, -1))
+
+    def commit(self) -> None:
+        """Every Embree scene's BVH built now, in this process (`raytrace._embree.commit`)."""
+        for es in self.scenes.values():
+            if es is not None:
+                commit(es)
 
     def first_hit(self, o, d, with_mirror: bool):
         """geom (N,) int (−1 none), prim (N,) int (local triangle index), t (N,) float64 or None.
@@ -457,15 +463,17 @@ _TRACER_CACHE: dict = {}
 
 
 def _tracer():
+    """The tracer of the render's scene and backend: made once and kept with the scene it was made of (compared by
+    identity, the scene held so that its id cannot name another), so that the workers forked after `render` made it
+    use the parent's (`render` builds its BVHs before it forks: `_EmbreeTracer.commit`)."""
     st = _STATE
-    cache_key = (os.getpid(), id(st["scene"]), st["backend"])
-    tr = _TRACER_CACHE.get(cache_key)
-    if tr is None:
-        _TRACER_CACHE.clear()
+    cached = _TRACER_CACHE
+    if cached.get("scene") is not st["scene"] or cached.get("backend") != st["backend"]:
+        cached.clear()
         geo = _Geometry(st["scene"])
         tr = _EmbreeTracer(geo) if st["backend"] == "embree" else _NumpyTracer(geo)
-        _TRACER_CACHE[cache_key] = tr
-    return tr
+        cached.update(scene=st["scene"], backend=st["backend"], tracer=tr)
+    return cached["tracer"]
 
 
 def _centre_tile(start: int, stop: int) -> int:
@@ -771,6 +779,8 @@ def render(
     try:
         with single_threaded_blas():
             if parallel:
+                if backend == "embree":  # its BVHs built here, before any worker forks (`raytrace._embree.commit`)
+                    _tracer().commit()
                 pool = ProcessPoolExecutor(max_workers=min(workers, len(tiles)),
                                            mp_context=multiprocessing.get_context("fork"),
                                            initializer=keep_freed_memory)

@@ -1,5 +1,7 @@
 """Tests of raytrace.render: Embree vs the numpy twin, determinism, the XSlit aspect ratio, and Mitsuba 3."""
 
+import os
+
 import numpy as np
 import pytest
 from rt_scenes import cylinder, mirror_scene, small_camera
@@ -257,3 +259,24 @@ def test_cube_masks_agree_with_mitsuba():
         assert a.sum() > 500
         iou = (a & b).sum() / (a | b).sum()
         assert iou >= 0.98, (k, iou)
+
+
+def test_the_workers_use_the_bvhs_built_before_they_fork(tmp_path, monkeypatch):
+    """A worker that builds an Embree scene runs Embree's task scheduler as the parent left it, without its threads
+    (a `make test` hung so, in a worker's first query): `render` builds and commits its BVHs before forking, and the
+    workers query those. Every Embree scene of a two-worker render is built in this process."""
+    builders = tmp_path / "built_by"
+    real = rr.build_scene
+
+    def recorded(triangles):
+        with open(builders, "a") as f:
+            f.write(f"{os.getpid()}\n")
+        return real(triangles)
+
+    monkeypatch.setattr(rr, "build_scene", recorded)
+    scene = mirror_scene(ground=GroundPlane(point=[0.0, -0.2, 0.0], checker=0.05))
+    cam = small_camera(320, 240)  # above MIN_PARALLEL_PIXELS: its tiles go to the workers
+    assert cam.resolution[0] * cam.resolution[1] >= rr.MIN_PARALLEL_PIXELS
+    out = render(scene, cam, spp=2, seed=0, workers=2)
+    assert {int(line) for line in builders.read_text().split()} == {os.getpid()}
+    np.testing.assert_array_equal(out.image, render(scene, cam, spp=2, seed=0, workers=1).image)
