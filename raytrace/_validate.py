@@ -113,3 +113,13 @@ def as_intrinsics(value, name: str = "K") -> np.ndarray:
     if not np.allclose(K[2], [0.0, 0.0, 1.0]) or K[1, 0] != 0:
         raise RaytraceError(f"{name}: expected an upper-triangular matrix with last row [0, 0, 1]")
     return K
+
+
+def check_same_rgb8(images: list) -> None:
+    """Raise unless every one of `images` (arrays) is an (H, W, 3) uint8 RGB image of the first one's size."""
+    for k, im in enumerate(images):
+        if im.dtype != np.uint8 or im.ndim != 3 or im.shape[2] != 3:
+            raise RaytraceError(f"images[{k}]: expected an (H, W, 3) uint8 RGB image, got {im.dtype} {im.shape}")
+        if im.shape != images[0].shape:
+            raise RaytraceError(f"images[{k}]: expected the size of images[0], {images[0].shape[1]}×"
+                                f"{images[0].shape[0]}, got {im.shape[1]}×{im.shape[0]}")

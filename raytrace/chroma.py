@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validate import as_intrinsics
+from ._validate import as_intrinsics, check_same_rgb8
 from .errors import RaytraceError
 from .lens import as_distortion, distort, undistort
 
@@ -187,12 +187,7 @@ def calibrate_channels(images, board: tuple[int, int], square: float) -> Channel
     imgs = [np.asarray(im) for im in images]
     if len(imgs) < 3:
         raise RaytraceError(f"images: expected at least 3 views of the chessboard, got {len(imgs)}")
-    for k, im in enumerate(imgs):
-        if im.dtype != np.uint8 or im.ndim != 3 or im.shape[2] != 3:
-            raise RaytraceError(f"images[{k}]: expected an (H, W, 3) uint8 RGB image, got {im.dtype} {im.shape}")
-        if im.shape != imgs[0].shape:
-            raise RaytraceError(f"images[{k}]: expected the size of images[0], {imgs[0].shape[1]}×{imgs[0].shape[0]}, "
-                                f"got {im.shape[1]}×{im.shape[0]}")
+    check_same_rgb8(imgs)
     cols, rows = (int(v) for v in board)
     if cols < 3 or rows < 3 or (cols, rows) != tuple(board):
         raise RaytraceError(f"board: expected the inner corners' columns and rows, whole numbers >= 3, got {board}")

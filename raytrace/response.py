@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._validate import check_same_rgb8
 from .errors import RaytraceError
 
 __all__ = ["CameraResponse", "as_response", "calibrate_response", "srgb_to_linear", "linear_to_srgb"]
@@ -194,12 +195,7 @@ def calibrate_response(images, times, samples: int = 200, smoothness: float = 10
         raise RaytraceError(f"times: expected positive exposure times, got {times.tolist()}")
     if len(np.unique(times)) < 2:
         raise RaytraceError("times: expected at least two different exposure times")
-    for k, im in enumerate(imgs):
-        if im.dtype != np.uint8 or im.ndim != 3 or im.shape[2] != 3:
-            raise RaytraceError(f"images[{k}]: expected an (H, W, 3) uint8 RGB image, got {im.dtype} {im.shape}")
-        if im.shape != imgs[0].shape:
-            raise RaytraceError(f"images[{k}]: expected the size of images[0], {imgs[0].shape[1]}×{imgs[0].shape[0]}, "
-                                f"got {im.shape[1]}×{im.shape[0]}")
+    check_same_rgb8(imgs)
     calibrate = cv2.createCalibrateDebevec(int(samples), float(smoothness), False)
     curve = calibrate.process([np.ascontiguousarray(im[:, :, ::-1]) for im in imgs], times.astype(np.float32))
     curve = np.maximum.accumulate(np.asarray(curve, dtype=np.float64).reshape(256, 3)[:, ::-1], axis=0)  # RGB
