@@ -155,7 +155,10 @@ def _run_reconstruction(image_path, setup_path, method, cube_size, progress, blu
     carried = setup.uncertainty is not None and method in EXACT_METHODS
     try:
         rec = reconstruct(image, setup.camera.build(), setup.mirror.build(), method=method,
-                          cube_size=cube_size, progress=progress, compressed=is_jpeg(image_path),
+                          cube_size=cube_size, progress=progress,
+                          # a demosaiced image's red and blue are interpolated over 3 pixels of 4, as a JPEG's
+                          # chroma is subsampled: read as one is, its edges on luma (`bench_bayer`)
+                          compressed=is_jpeg(image_path) or setup.camera.demosaiced,
                           blur_domain=blur_domain, workers=workers, cube_size_std=cube_size_std,
                           floor_height=floor_height, floor_std=floor_std,
                           setup_std=setup.uncertainty.build() if carried else None)

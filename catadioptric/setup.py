@@ -131,6 +131,15 @@ def _distortion(d: dict, w: _Where) -> tuple[float, ...] | None:
     return tuple(float(v) for v in x)
 
 
+def _boolean(d: dict, name: str, w: _Where, meaning: str) -> bool:
+    """An optional true / false key, false where absent."""
+    if name not in d:
+        return False
+    if not isinstance(d[name], bool):
+        raise w.error(name, f"true or false ({meaning})", d[name])
+    return d[name]
+
+
 def _response(d: dict, w: _Where):
     """`[camera] response` as a `raytrace.response.CameraResponse`, or None (sRGB) where the key is absent."""
     if "response" not in d:
@@ -196,9 +205,10 @@ class CameraConfig:
     response: Any = None  # a raytrace.response.CameraResponse; None: sRGB
     red: ChannelConfig | None = None  # that channel's own intrinsics (lateral chromatic aberration); None: green's
     blue: ChannelConfig | None = None
+    demosaiced: bool = False  # its images are demosaiced from an RGGB Bayer mosaic
 
     KEYS: ClassVar[set] = {"resolution", "focal_px", "principal_px", "position", "look_at", "up", "distortion",
-                           "response", "red", "blue"}
+                           "response", "red", "blue", "demosaiced"}
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "<dict>", prefix: str = "camera.") -> "CameraConfig":
@@ -215,7 +225,9 @@ class CameraConfig:
                   distortion=_distortion(d, w),
                   response=_response(d, w),
                   red=ChannelConfig.from_dict(d["red"], w, "red") if "red" in d else None,
-                  blue=ChannelConfig.from_dict(d["blue"], w, "blue") if "blue" in d else None)
+                  blue=ChannelConfig.from_dict(d["blue"], w, "blue") if "blue" in d else None,
+                  demosaiced=_boolean(d, "demosaiced", w, "true where the camera's images are demosaiced from an "
+                                      "RGGB Bayer mosaic"))
         view = np.subtract(cam.look_at, cam.position)
         if np.linalg.norm(view) == 0:
             raise w.error("look_at", "a point different from camera.position", list(cam.look_at))
@@ -262,6 +274,8 @@ class CameraConfig:
         for name in ("red", "blue"):
             if getattr(self, name) is not None:
                 d[name] = getattr(self, name).to_dict()
+        if self.demosaiced:
+            d["demosaiced"] = True
         return d
 
     def build(self):

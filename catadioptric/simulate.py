@@ -79,10 +79,15 @@ def _gt_arrays(r) -> dict:
 
 
 def _png(sim: Simulation) -> bytes:
-    """OUT.png's bytes: the render stored as the setup's camera stores light (`[camera] response`; sRGB)."""
+    """OUT.png's bytes: the render stored as the setup's camera stores light (`[camera] response`; sRGB), demosaiced
+    from an RGGB mosaic of it where the camera's images are (`[camera] demosaiced`: OpenCV's VNG)."""
     from raytrace.render import linear_to_srgb8
     response = sim.setup.camera.response
-    return encode_png(linear_to_srgb8(sim.render.image) if response is None else response.encode8(sim.render.image))
+    codes = linear_to_srgb8(sim.render.image) if response is None else response.encode8(sim.render.image)
+    if sim.setup.camera.demosaiced:
+        from raytrace.chroma import demosaiced
+        codes = demosaiced(codes)
+    return encode_png(codes)
 
 
 def _write_rest(out: OutputSet, sim: Simulation, paths: dict, png: bytes | None = None) -> None:

@@ -22,7 +22,8 @@ from ._validate import as_intrinsics, check_same_rgb8
 from .errors import RaytraceError
 from .lens import as_distortion, distort, undistort
 
-__all__ = ["CHANNELS", "ChannelLens", "ChannelCalibration", "as_channel_lens", "channel_pixels", "calibrate_channels"]
+__all__ = ["CHANNELS", "ChannelLens", "ChannelCalibration", "as_channel_lens", "channel_pixels", "calibrate_channels",
+           "bayer_mosaic", "demosaiced"]
 
 CHANNELS = ("red", "blue")
 """The channels that may have a lens of their own, against green (the camera's)."""
@@ -225,3 +226,25 @@ def calibrate_channels(images, board: tuple[int, int], square: float) -> Channel
         at = channel_pixels(camera, name)[int(far[1]), int(far[0])]
         calibration.corner_shift_px[name] = float(np.hypot(at[0] - far[0], at[1] - far[1]))
     return calibration
+
+
+def bayer_mosaic(image) -> np.ndarray:
+    """(H, W) uint8: what an RGGB Bayer sensor records of an (H, W, 3) uint8 RGB image, each pixel its own colour
+    filter's channel (red at even rows and columns, blue at odd ones, green between)."""
+    img = np.asarray(image)
+    if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
+        raise RaytraceError(f"image: expected an (H, W, 3) uint8 RGB image, got {img.dtype} {img.shape}")
+    raw = np.empty(img.shape[:2], np.uint8)
+    raw[0::2, 0::2] = img[0::2, 0::2, 0]
+    raw[0::2, 1::2] = img[0::2, 1::2, 1]
+    raw[1::2, 0::2] = img[1::2, 0::2, 1]
+    raw[1::2, 1::2] = img[1::2, 1::2, 2]
+    return raw
+
+
+def demosaiced(image) -> np.ndarray:
+    """The (H, W, 3) uint8 RGB image an RGGB Bayer camera makes of `image`: its mosaic (`bayer_mosaic`) demosaiced by
+    OpenCV's variable number of gradients (`cv2.COLOR_BayerRGGB2RGB_VNG`). Each channel keeps its own samples; red and
+    blue are interpolated over three pixels of four, green over one of two."""
+    import cv2
+    return cv2.cvtColor(bayer_mosaic(image), cv2.COLOR_BayerRGGB2RGB_VNG)

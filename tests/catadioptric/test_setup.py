@@ -88,6 +88,18 @@ def test_a_channel_s_own_lens_is_optional_round_trips_and_defaults_to_the_camera
     np.testing.assert_array_equal(cam.K, [[fx, 0.0, 79.5], [0.0, fy, 59.5], [0.0, 0.0, 1.0]])  # green's, as given
 
 
+def test_a_demosaiced_camera_is_optional_and_round_trips(valid_setup, write_setup, tmp_path):
+    assert load_setup(write_setup(valid_setup)).camera.demosaiced is False
+    valid_setup["camera"]["demosaiced"] = True
+    s = load_setup(write_setup(valid_setup))
+    assert s.camera.demosaiced is True
+    p = tmp_path / "again.toml"
+    save_setup(s, p)
+    assert load_setup(p) == s and "demosaiced = true" in p.read_text()
+    valid_setup["camera"]["demosaiced"] = False
+    assert "demosaiced" not in setup_to_toml(load_setup(write_setup(valid_setup)))
+
+
 def test_builtin_demo_setup_is_valid():
     from importlib.resources import files
     s = load_setup(files("catadioptric") / "data" / "demo.toml")
@@ -136,6 +148,8 @@ BAD = [
     ("camera.response", [0.0, 0.5, 1.0], "camera.response: expected .* a table of 256 numbers .* got an array of "
                                          "shape \\(3,\\)"),
     ("camera.response", [1.0] * 256, "camera.response: expected a table rising with the code .* channel 0 is flat"),
+    ("camera.demosaiced", "yes", "camera.demosaiced: expected true or false \\(true where the camera's images are "
+                                 "demosaiced from an RGGB Bayer mosaic\\), got 'yes'"),
     ("camera.red", [1.0], "camera.red: expected a table, got list"),
     ("camera.red", {}, "camera.red: expected at least one of focal_px, principal_px, distortion"),
     ("camera.red", {"focal": [350.0, 350.0]}, "camera.red.focal: unknown key"),

@@ -102,3 +102,26 @@ def test_a_render_takes_each_channel_through_its_own_camera():
     np.testing.assert_array_equal(got.object_id, plain.object_id)
     assert got.rays_traced == plain.rays_traced + through_red.rays_traced
     assert np.abs(got.image[..., 0] - plain.image[..., 0]).max() > 0.05  # (red does see the scene elsewhere)
+
+
+def test_a_bayer_mosaic_keeps_each_pixel_s_own_filter_channel_and_demosaicing_keeps_those_samples():
+    from raytrace.chroma import bayer_mosaic, demosaiced
+    rng = np.random.default_rng(5)
+    img = rng.integers(0, 256, (6, 8, 3), dtype=np.uint8)
+    raw = bayer_mosaic(img)
+    np.testing.assert_array_equal(raw, np.take_along_axis(img, channel_of(6, 8)[..., None], axis=2)[..., 0])
+    smooth = np.broadcast_to(np.array([200, 90, 20], np.uint8), (32, 40, 3)).copy()
+    np.testing.assert_array_equal(demosaiced(smooth)[4:-4, 4:-4], smooth[4:-4, 4:-4])  # one colour stays itself
+    edge = np.full((32, 40, 3), 40, np.uint8)
+    edge[:, 20:] = (220, 180, 60)
+    made = demosaiced(edge)
+    own = np.take_along_axis(made, channel_of(32, 40)[..., None], axis=2)
+    np.testing.assert_array_equal(own[..., 0], bayer_mosaic(edge))  # the samples recorded are kept as they are
+    with pytest.raises(RaytraceError, match=r"image: expected an \(H, W, 3\) uint8 RGB image"):
+        bayer_mosaic(np.zeros((4, 4), np.uint8))
+
+
+def channel_of(h, w):
+    """Each pixel's filter of an RGGB mosaic: red (0) at even rows and columns, blue (2) at odd ones, green (1)."""
+    rows, cols = np.mgrid[0:h, 0:w]
+    return np.where((rows % 2 == 0) & (cols % 2 == 0), 0, np.where((rows % 2 == 1) & (cols % 2 == 1), 2, 1))
