@@ -109,14 +109,16 @@ def test_the_lens_command_prints_camera_lines_a_setup_takes(views, tmp_path, cap
     out = capsys.readouterr().out
     printed = tomllib.loads(out)["camera"]
     assert set(printed) == {"focal_px", "principal_px", "distortion", "red", "blue"}
+    # the same calibration run here: OpenCV's sums over its threads make runs differ in the 8th digit (4.5e-8 seen)
     cal = calibrate_channels(views[:8], BOARD, SQUARE)
-    np.testing.assert_allclose(printed["red"]["focal_px"], np.diag(cal.red.K)[:2], rtol=1e-9)
-    np.testing.assert_allclose(printed["blue"]["principal_px"], cal.blue.K[:2, 2], rtol=1e-9)
-    np.testing.assert_allclose(printed["distortion"], cal.distortion[:5], rtol=1e-8, atol=1e-12)
+    np.testing.assert_allclose(printed["red"]["focal_px"], np.diag(cal.red.K)[:2], rtol=1e-6)
+    np.testing.assert_allclose(printed["blue"]["principal_px"], cal.blue.K[:2, 2], rtol=1e-6)
+    np.testing.assert_allclose(printed["distortion"], cal.distortion[:5], rtol=1e-6, atol=1e-12)
     valid_setup["camera"].update(printed)
     valid_setup["camera"]["resolution"] = list(SIZE)
     camera = Setup.from_dict(valid_setup).camera.build()
-    np.testing.assert_allclose(camera.red.K, cal.red.K, rtol=1e-9)
+    np.testing.assert_array_equal(np.diag(camera.red.K)[:2], printed["red"]["focal_px"])  # built as printed
+    np.testing.assert_array_equal(camera.blue.K[:2, 2], printed["blue"]["principal_px"])
     assert "# rms reprojection error: green" in out and "of 8 views of a 9×6 chessboard" in out
 
 
