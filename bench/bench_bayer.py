@@ -57,7 +57,8 @@ def run(quick: bool = False, log=print) -> dict:
             s = score([c.to_dict() for c in rec.cubes], truth, [sc.kind] * len(truth), list(sc.turn_deg))
             records.append({"renderer": renderer, "scene": name, "reading": f"{renderer}, {reading}",
                             "false_positives": s["false_positives"], "cubes": s["cubes"]})
-        log(f"  [{n + 1}/{len(todo)}] {renderer} {name}: {len(truth)} cubes; elapsed {time.perf_counter() - t_start:.0f} s")
+        log(f"  [{n + 1}/{len(todo)}] {renderer} {name}: {len(truth)} cubes; "
+            f"elapsed {time.perf_counter() - t_start:.0f} s")
     return {"records": records, "quick": quick, "seconds_total": time.perf_counter() - t_start}
 
 
@@ -68,5 +69,6 @@ def report(result: dict, log=print) -> dict:
 
 def main(argv=None) -> int:
     from bench.bench_known_size import written_main
-    return written_main("bayer", "Bayer mosaic: Mitsuba holdout and our renders{quick} recorded through an RGGB mosaic, "
-                        "demosaiced by " + ", ".join(DEMOSAICS) + "; each read ignored and declared", run, report, argv)
+    return written_main("bayer", "Bayer mosaic: Mitsuba holdout and our renders{quick} recorded through an RGGB "
+                        "mosaic, demosaiced by " + ", ".join(DEMOSAICS) + "; each read ignored and declared", run, report,
+                        argv)

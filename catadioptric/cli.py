@@ -361,7 +361,8 @@ def _lens_toml(cal, paths, board) -> str:
     rms = cal.rms_px
     lines = [f"# the lens (catadioptric lens), from {len(cal.views)} of {len(paths)} views of a {board[0]}×{board[1]} "
              "chessboard" + (f" (not found in: {', '.join(unused)})" if unused else ""),
-             f"# rms reprojection error: green {rms['green']:.3f} px, red {rms['red']:.3f} px, blue {rms['blue']:.3f} px",
+             f"# rms reprojection error: green {rms['green']:.3f} px, red {rms['red']:.3f} px, "
+             f"blue {rms['blue']:.3f} px",
              f"# at the image's farthest corner red images {cal.corner_shift_px['red']:.2f} px and blue "
              f"{cal.corner_shift_px['blue']:.2f} px from green",
              f"# the boards spanned {100 * cal.coverage:.0f} % of the image"
