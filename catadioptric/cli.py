@@ -274,19 +274,25 @@ def _cmd_report(args) -> int:
 
 
 def _cmd_response(args) -> int:
-    from catadioptric import reconstruct as rc
     from raytrace.response import calibrate_response
     if len(args.times) != len(args.images):
         raise CatadioptricError(f"--times: expected one exposure time per image ({len(args.images)}), "
                                 f"got {len(args.times)}")
-    images = [rc.read_image(path) for path in args.images]
-    for path, im in zip(args.images, images):
-        if im.shape != images[0].shape:
-            raise CatadioptricError(f"{path}: expected the size of {args.images[0]}, {images[0].shape[1]}×"
-                                    f"{images[0].shape[0]} pixels, got {im.shape[1]}×{im.shape[0]}")
+    images = _same_size_images(args.images)
     response, agreement = calibrate_response(images, args.times)
     print(_response_toml(response, agreement, len(images)), end="")
     return 0
+
+
+def _same_size_images(paths) -> list:
+    """The images at `paths` (`catadioptric.reconstruct.read_image`), each of the first one's size."""
+    from catadioptric import reconstruct as rc
+    images = [rc.read_image(path) for path in paths]
+    for path, im in zip(paths, images):
+        if im.shape != images[0].shape:
+            raise CatadioptricError(f"{path}: expected the size of {paths[0]}, {images[0].shape[1]}×"
+                                    f"{images[0].shape[0]} pixels, got {im.shape[1]}×{im.shape[0]}")
+    return images
 
 
 def _exposure_time(text: str) -> float:
@@ -331,15 +337,10 @@ def _board_size(text: str) -> tuple[int, int]:
 def _cmd_lens(args) -> int:
     import numpy as np
 
-    from catadioptric import reconstruct as rc
     from raytrace.chroma import calibrate_channels
     if not (np.isfinite(args.square) and args.square > 0):
         raise CatadioptricError(f"--square: expected the squares' side, > 0, got {args.square}")
-    images = [rc.read_image(path) for path in args.images]
-    for path, im in zip(args.images, images):
-        if im.shape != images[0].shape:
-            raise CatadioptricError(f"{path}: expected the size of {args.images[0]}, {images[0].shape[1]}×"
-                                    f"{images[0].shape[0]} pixels, got {im.shape[1]}×{im.shape[0]}")
+    images = _same_size_images(args.images)
     calibration = calibrate_channels(images, args.board, args.square)
     print(_lens_toml(calibration, args.images, args.board), end="")
     return 0

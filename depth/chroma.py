@@ -42,13 +42,7 @@ def _stored(light: np.ndarray, response, k: int, as_uint8: bool) -> np.ndarray:
             return response.encode8(light, channel=k)
         from raytrace.render import linear_to_srgb8
         return linear_to_srgb8(light)
-    if response is None:
-        return linear_to_srgb(light)
-    if response.kind == "linear":  # the stored value whose light this is: the curve's inverse, unrounded
-        return light
-    if response.kind == "gamma":
-        return light ** (1.0 / response.gamma)
-    return np.interp(light, response.table[:, k], np.arange(256) / 255.0)
+    return linear_to_srgb(light) if response is None else response.stored(light, channel=k)
 
 
 def _within_neighbours(moved: np.ndarray, light: np.ndarray, at: np.ndarray) -> np.ndarray:

@@ -217,14 +217,12 @@ def calibrate_channels(images, board: tuple[int, int], square: float) -> Channel
     calibration = ChannelCalibration(K=np.asarray(K, dtype=np.float64), distortion=dist, red=lenses["red"],
                                      blue=lenses["blue"], rms_px=rms, views=tuple(views), corner_shift_px={},
                                      coverage=float(spanned.mean()))
-    from .camera import PinholeCamera
-    camera = PinholeCamera((w, h), calibration.K, np.eye(3), np.zeros(3), dist, red=lenses["red"],
-                           blue=lenses["blue"])
     far = max(((0.0, 0.0), (w - 1.0, 0.0), (0.0, h - 1.0), (w - 1.0, h - 1.0)),
               key=lambda p: np.hypot(p[0] - calibration.K[0, 2], p[1] - calibration.K[1, 2]))
+    green = ChannelLens(calibration.K, dist)  # (`_node_moves` reads a camera's K and distortion alone)
     for name in CHANNELS:
-        at = channel_pixels(camera, name)[int(far[1]), int(far[0])]
-        calibration.corner_shift_px[name] = float(np.hypot(at[0] - far[0], at[1] - far[1]))
+        move = _node_moves(green, lenses[name], np.array([far[0]]), np.array([far[1]]))
+        calibration.corner_shift_px[name] = float(np.hypot(*move[0, 0]))
     return calibration
 
 

@@ -100,8 +100,7 @@ class CameraResponse:
         is that channel's alone, (...) → (...)."""
         x = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0)
         if self.kind != "table":
-            stored = x if self.kind == "linear" else x ** (1.0 / self.gamma)
-            return np.round(stored * 255.0).astype(np.uint8)
+            return np.round(self.stored(x) * 255.0).astype(np.uint8)
 
         def codes(light, t):
             code = np.round(np.interp(light, t, np.arange(256.0))).astype(np.intp)
@@ -113,6 +112,18 @@ class CameraResponse:
         for k in range(3):
             out[..., k] = codes(x[..., k], self.table[:, k])
         return out
+
+    def stored(self, linear, channel: int | None = None) -> np.ndarray:
+        """Light (..., 3) in [0, 1] (clipped) → the stored values in [0, 1] whose light it is, unrounded: the curve's
+        inverse (a table's taken as piecewise linear between codes). With `channel`, that channel's light alone."""
+        x = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0)
+        if self.kind == "linear":
+            return x
+        if self.kind == "gamma":
+            return x ** (1.0 / self.gamma)
+        if channel is not None:
+            return np.interp(x, self.table[:, channel], CODES)
+        return np.stack([np.interp(x[..., k], self.table[:, k], CODES) for k in range(3)], axis=-1)
 
     def to_value(self):
         """The setup file's value of this response: "linear", the gamma, or the table (256 numbers, or 3 lists

@@ -1,4 +1,4 @@
-"""Shared fixtures: a valid setup dictionary and a writer of setup files."""
+"""Shared fixtures: a valid setup dictionary, a writer of setup files, and the demo setup with camera keys."""
 
 import copy
 
@@ -27,4 +27,21 @@ def write_setup(tmp_path):
         p = tmp_path / name
         p.write_text(tomli_w.dumps(d))
         return p
+    return write
+
+
+@pytest.fixture(scope="session")
+def demo_with_camera():
+    """write(folder, name, camera): the built-in demo's setup as folder/plain.toml and, with the `[camera]` keys
+    `camera(setup)` gives (setup: the demo's `Setup`), as folder/name, as a user would write them."""
+    from importlib.resources import files
+
+    from catadioptric.setup import load_setup, save_setup
+
+    def write(folder, name, camera):
+        setup = load_setup(files("catadioptric") / "data" / "demo.toml")
+        save_setup(setup, folder / "plain.toml")
+        d = setup.to_dict()
+        d["camera"].update(camera(setup))
+        (folder / name).write_text(tomli_w.dumps(d))
     return write

@@ -2,26 +2,20 @@
 `reconstruct` (the built-in demo scene, 4 spp)."""
 
 import json
-from importlib.resources import files
 
 import cv2
 import numpy as np
 import pytest
 
 from catadioptric.cli import main
-from catadioptric.setup import load_setup, save_setup
+from catadioptric.setup import load_setup
 from raytrace.chroma import bayer_mosaic
 
 
 @pytest.fixture(scope="module")
-def rendered(tmp_path_factory):
-    import tomli_w
+def rendered(tmp_path_factory, demo_with_camera):
     folder = tmp_path_factory.mktemp("bayer")
-    setup = load_setup(files("catadioptric") / "data" / "demo.toml")
-    save_setup(setup, folder / "plain.toml")
-    d = setup.to_dict()
-    d["camera"]["demosaiced"] = True
-    (folder / "bayer.toml").write_text(tomli_w.dumps(d))
+    demo_with_camera(folder, "bayer.toml", lambda setup: {"demosaiced": True})
     assert main(["simulate", str(folder / "plain.toml"), "-o", str(folder / "plain.png"), "--spp", "4"]) == 0
     assert main(["simulate", str(folder / "bayer.toml"), "-o", str(folder / "mirror.png"), "--spp", "4"]) == 0
     return folder

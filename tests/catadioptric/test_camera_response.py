@@ -7,14 +7,13 @@ as a table of the light of each code, scaled by 5 as a calibration gives it in a
 
 import dataclasses
 import json
-from importlib.resources import files
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from catadioptric.cli import main
-from catadioptric.setup import load_setup, save_setup
+from catadioptric.setup import load_setup
 
 K = 1.5
 
@@ -27,15 +26,10 @@ def _tone_table() -> list:
 
 
 @pytest.fixture(scope="module")
-def rendered(tmp_path_factory):
+def rendered(tmp_path_factory, demo_with_camera):
     """plain.png (sRGB) and tone.png (the roll-off camera, declared in declared.toml as a user would write it)."""
-    import tomli_w
     folder = tmp_path_factory.mktemp("response")
-    setup = load_setup(files("catadioptric") / "data" / "demo.toml")
-    save_setup(setup, folder / "plain.toml")
-    d = setup.to_dict()
-    d["camera"]["response"] = _tone_table()
-    (folder / "declared.toml").write_text(tomli_w.dumps(d))
+    demo_with_camera(folder, "declared.toml", lambda setup: {"response": _tone_table()})
     assert main(["simulate", str(folder / "plain.toml"), "-o", str(folder / "plain.png")]) == 0
     assert main(["simulate", str(folder / "declared.toml"), "-o", str(folder / "tone.png")]) == 0
     return folder

@@ -7,29 +7,27 @@ channel through its own camera) and read with the channels' lenses declared, and
 """
 
 import json
-from importlib.resources import files
 
 import numpy as np
 import pytest
 
 from catadioptric.cli import main
-from catadioptric.setup import load_setup, save_setup
+from catadioptric.setup import load_setup
 
 SHIFT_PX = 1.0
 
 
 @pytest.fixture(scope="module")
-def rendered(tmp_path_factory):
-    import tomli_w
+def rendered(tmp_path_factory, demo_with_camera):
     folder = tmp_path_factory.mktemp("chromatic")
-    setup = load_setup(files("catadioptric") / "data" / "demo.toml")
-    save_setup(setup, folder / "plain.toml")
-    d = setup.to_dict()
-    (w, h), (fx, fy) = setup.camera.resolution, setup.camera.focal_px
-    corner = np.hypot((w - 1) / 2, (h - 1) / 2)
-    d["camera"]["red"] = {"focal_px": [fx * (1 + SHIFT_PX / corner), fy * (1 + SHIFT_PX / corner)]}
-    d["camera"]["blue"] = {"focal_px": [fx * (1 - SHIFT_PX / corner), fy * (1 - SHIFT_PX / corner)]}
-    (folder / "lensed.toml").write_text(tomli_w.dumps(d))
+
+    def lenses(setup):
+        (w, h), (fx, fy) = setup.camera.resolution, setup.camera.focal_px
+        corner = np.hypot((w - 1) / 2, (h - 1) / 2)
+        return {"red": {"focal_px": [fx * (1 + SHIFT_PX / corner), fy * (1 + SHIFT_PX / corner)]},
+                "blue": {"focal_px": [fx * (1 - SHIFT_PX / corner), fy * (1 - SHIFT_PX / corner)]}}
+
+    demo_with_camera(folder, "lensed.toml", lenses)
     assert main(["simulate", str(folder / "lensed.toml"), "-o", str(folder / "mirror.png"), "--spp", "4"]) == 0
     for name, setup_file in (("declared", "mirror.toml"), ("ignored", "plain.toml")):
         assert main(["reconstruct", str(folder / "mirror.png"), "--setup", str(folder / setup_file),

@@ -87,6 +87,18 @@ def test_one_channel_reads_and_stores_by_its_own_curve():
     np.testing.assert_array_equal(gamma.encode8((codes / 255.0) ** 2.0, channel=1), codes)
 
 
+def test_stored_values_are_the_light_s_own_unrounded():
+    """`stored` inverts `to_linear` between codes: for a table per channel (R, G, B as x^1.8, x^2.2, x^2.6, written
+    out) and a gamma, each channel's stored value of a light comes back from that light."""
+    x = np.arange(256) / 255.0
+    table = as_response(np.stack([x ** 1.8, x ** 2.2, x ** 2.6]).tolist())
+    values = np.random.default_rng(2).uniform(0.0, 1.0, (50, 3))
+    np.testing.assert_allclose(table.stored(table.to_linear(values)), values, atol=1e-12)
+    np.testing.assert_allclose(table.stored(values[:, 1] ** 2.2, channel=1), values[:, 1], atol=2e-3)
+    np.testing.assert_allclose(as_response(2.0).stored(values ** 2.0), values, rtol=1e-13)
+    np.testing.assert_array_equal(as_response("linear").stored(np.array([-0.5, 0.25, 1.5])), [0.0, 0.25, 1.0])
+
+
 def test_an_srgb_table_reads_as_the_default():
     """A table of the sRGB curve itself re-encodes every code to its own value: the pipeline reads such a camera's
     image as it reads the default's."""
