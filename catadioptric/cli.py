@@ -232,8 +232,8 @@ def _cmd_reconstruct(args) -> int:
                                                               blur_domain=args.blur_domain, workers=workers,
                                                               cube_size_std=args.cube_size_std,
                                                               on_floor=args.on_floor, floor_height=args.floor_height,
-                                                              floor_std=args.floor_std)
-    result = rc.result_dict(args.image, setup_path, rec)
+                                                              floor_std=args.floor_std, demosaic=args.demosaic)
+    result = rc.result_dict(args.image, setup_path, rec, rc.raw_demosaic(setup, args.demosaic))
     truth = _truth_beside(args.image)
     overlay = rc.draw_overlay(image, rec) if args.overlay else None
     written = rc.write_outputs(result, json_path, args.overlay, overlay)
@@ -460,6 +460,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "software blurred the stored values) or linear (optics, a renderer's pixel filter)")
     r.add_argument("--workers", type=int, default=None, metavar="N",
                    help="processes the faces are measured in (default: every core; the result is the same)")
+    r.add_argument("--demosaic", default=None, metavar="D",
+                   help="how a raw Bayer frame ([camera] mosaic) is made an image: VNG (default), two-colour, "
+                        "bilinear or edge-aware")
     r.set_defaults(func=_cmd_reconstruct, without_cycle_collector=True)
 
     rp = sub.add_parser("report", help="an HTML report with 3D views, plots and annotated images")

@@ -19,8 +19,8 @@ from catadioptric.errors import CatadioptricError
 from catadioptric.outputs import OutputSet
 from catadioptric.setup import load_setup
 
-__all__ = ["decode_image_file", "read_image", "default_setup_path", "run_reconstruction", "result_dict", "draw_overlay",
-           "print_table", "write_outputs"]
+__all__ = ["decode_image_file", "read_image", "camera_image", "raw_demosaic", "as_codes", "default_setup_path",
+           "run_reconstruction", "result_dict", "draw_overlay", "print_table", "write_outputs"]
 
 
 def is_jpeg(path) -> bool:
@@ -64,11 +64,66 @@ def decode_image_file(path, flags=cv2.IMREAD_UNCHANGED, expected="an 8-bit RGB P
 def read_image(path) -> np.ndarray:
     """An 8-bit RGB image file as (H, W, 3) uint8; one-line errors for anything else."""
     path = Path(path)
-    img = decode_image_file(path)
+    return _rgb_image(decode_image_file(path), path)
+
+
+def camera_image(path, setup, setup_path, demosaic: str | None = None) -> np.ndarray:
+    """The image file at `path` as `reconstruct` reads it for `setup`'s camera: an 8-bit RGB image as (H, W, 3)
+    uint8, or where `[camera] mosaic` says the camera's images are raw Bayer frames, the frame checked and
+    demosaiced (`depth.chroma.from_raw_frame`, by `demosaic`: default `depth.chroma.DEMOSAIC`) as 8-bit codes to draw
+    on (`reconstruct` reads its values unrounded); one-line errors naming the file for anything else."""
+    path = Path(path)
+    return as_codes(_camera_image(decode_image_file(path), path, setup, setup_path, demosaic))
+
+
+def as_codes(image: np.ndarray) -> np.ndarray:
+    """An image as 8-bit codes (H, W, 3) uint8 for drawing on: as it is, or float64 values in [0, 1] rounded."""
+    if image.dtype == np.uint8:
+        return image
+    return np.round(np.clip(image, 0.0, 1.0) * 255.0).astype(np.uint8)
+
+
+def raw_demosaic(setup, demosaic: str | None = None) -> str | None:
+    """The demosaic a raw Bayer frame of `setup`'s camera is read through (`demosaic`, default
+    `depth.chroma.DEMOSAIC`), or None where its images are RGB (no `[camera] mosaic`)."""
+    if setup.camera.mosaic is None:
+        return None
+    from depth.chroma import DEMOSAIC
+    return demosaic or DEMOSAIC
+
+
+def _camera_image(decoded, path, setup, setup_path, demosaic=None) -> np.ndarray:
+    """`camera_image` of the file's decoded values (`decode_image_file`'s)."""
+    pattern = setup.camera.mosaic
+    if pattern is None:
+        return _rgb_image(decoded, path)
+    key = f"{setup_path}: camera.mosaic {pattern}"
+    if decoded.ndim == 3 and decoded.shape[2] != 1:
+        raise CatadioptricError(f"{path}: expected a one-channel raw Bayer frame ({key}), got an image of "
+                                f"{decoded.shape[2]} channels")
+    if decoded.dtype not in (np.uint8, np.uint16):
+        kind = "floats" if decoded.dtype.kind == "f" else "integers"
+        raise CatadioptricError(f"{path}: expected an 8- or 16-bit raw Bayer frame ({key}), got "
+                                f"{decoded.dtype.itemsize * 8}-bit {kind}")
+    if is_jpeg(path):
+        raise CatadioptricError(f"{path}: expected a raw Bayer frame stored losslessly, PNG or TIFF ({key}), "
+                                "got a JPEG file")
+    frame = decoded.reshape(decoded.shape[:2])
+    w, h = setup.camera.resolution
+    if frame.shape != (h, w):
+        raise CatadioptricError(f"{path}: expected {w}×{h} pixels ({setup_path}: camera.resolution), "
+                                f"got {frame.shape[1]}×{frame.shape[0]}")
+    from depth.chroma import from_raw_frame
+    return from_raw_frame(frame, pattern, raw_demosaic(setup, demosaic))
+
+
+def _rgb_image(img, path) -> np.ndarray:
+    """An 8-bit RGB image's decoded values (OpenCV's channel order) as (H, W, 3) uint8 RGB; one-line errors."""
+    if img.ndim == 2 or img.shape[2] == 1:
+        raise CatadioptricError(f"{path}: expected an RGB colour image, got a grayscale image (a camera's raw Bayer "
+                                "frame? its setup says so: [camera] mosaic)")
     if img.dtype != np.uint8:
         raise CatadioptricError(f"{path}: expected an 8-bit image, got {img.dtype.itemsize * 8}-bit")
-    if img.ndim == 2 or img.shape[2] == 1:
-        raise CatadioptricError(f"{path}: expected an RGB colour image, got a grayscale image")
     if img.shape[2] == 4:
         img = img[:, :, :3]
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
@@ -80,17 +135,18 @@ def default_setup_path(image_path) -> Path:
 
 
 def run_reconstruction(image_path, setup_path=None, method=None, cube_size=None, progress=None, blur_domain=None,
-                       workers=None, cube_size_std=None, on_floor=False, floor_height=None, floor_std=None):
+                       workers=None, cube_size_std=None, on_floor=False, floor_height=None, floor_std=None,
+                       demosaic=None):
     """Validate the inputs and reconstruct (the faces on `workers` processes, default every core); returns
     (setup, setup_path, image, Reconstruction). `on_floor`: the cubes stand on the floor the mirror stands on
     (its lower end); `floor_height`: on a floor this far (m) along the mirror's axis from its centre instead;
-    `floor_std`: that floor's height σ (m)."""
+    `floor_std`: that floor's height σ (m); `demosaic`: how a raw Bayer frame is made an image (`raw_demosaic`)."""
     from depth.reconstruct import helper_started
     # `reconstruct`'s helper process forked first, before any thread starts here: it imports the estimators'
     # modules (0.5–0.6 s) while the inputs are read and the cubes detected; ended where the inputs are refused
     with helper_started():
         return _run_reconstruction(image_path, setup_path, method, cube_size, progress, blur_domain, workers,
-                                   cube_size_std, on_floor, floor_height, floor_std)
+                                   cube_size_std, on_floor, floor_height, floor_std, demosaic)
 
 
 def _check_floor(method, cube_size, on_floor, floor_height, floor_std):
@@ -115,12 +171,12 @@ def _check_floor(method, cube_size, on_floor, floor_height, floor_std):
 
 
 def _run_reconstruction(image_path, setup_path, method, cube_size, progress, blur_domain, workers, cube_size_std,
-                        on_floor=False, floor_height=None, floor_std=None):
+                        on_floor=False, floor_height=None, floor_std=None, demosaic=None):
     from concurrent.futures import ThreadPoolExecutor
     with ThreadPoolExecutor(1) as reader:
         # the image decoded (by OpenCV, which lets go of the GIL: 40 ms for a 2048×1536 PNG) while the
         # modules below are imported; its errors are raised in turn, below
-        reading = reader.submit(read_image, image_path)
+        reading = reader.submit(decode_image_file, Path(image_path))
         from depth.measure import BLUR_DOMAINS
         from depth.reconstruct import ALL_METHODS, DEFAULT_METHOD, EXACT_METHODS, reconstruct
     method = method or DEFAULT_METHOD
@@ -142,9 +198,16 @@ def _run_reconstruction(image_path, setup_path, method, cube_size, progress, blu
                                 "estimator's fit: give --cube-size and --method exact"
                                 + ("" if cube_size is None else f", not {method}"))
     _check_floor(method, cube_size, on_floor, floor_height, floor_std)
+    from depth.chroma import DEMOSAICS
+    if demosaic is not None and demosaic not in DEMOSAICS:
+        raise CatadioptricError(f"--demosaic: expected one of {', '.join(DEMOSAICS)}, got {demosaic!r}")
     setup_path = Path(setup_path) if setup_path else default_setup_path(image_path)
-    image = reading.result()
+    decoded = reading.result()
     setup = load_setup(setup_path)
+    if demosaic is not None and setup.camera.mosaic is None:
+        raise CatadioptricError(f"--demosaic: {setup_path} has no [camera] mosaic: its camera's images are RGB, not "
+                                "raw Bayer frames")
+    image = _camera_image(decoded, Path(image_path), setup, setup_path, demosaic)
     w, h = setup.camera.resolution
     if image.shape[:2] != (h, w):
         raise CatadioptricError(f"{image_path}: expected {w}×{h} pixels ({setup_path}: camera.resolution), "
@@ -157,22 +220,27 @@ def _run_reconstruction(image_path, setup_path, method, cube_size, progress, blu
         rec = reconstruct(image, setup.camera.build(), setup.mirror.build(), method=method,
                           cube_size=cube_size, progress=progress,
                           # a demosaiced image's red and blue are interpolated over 3 pixels of 4, as a JPEG's
-                          # chroma is subsampled: read as one is, its edges on luma (`bench_bayer`)
-                          compressed=is_jpeg(image_path) or setup.camera.demosaiced,
+                          # chroma is subsampled: read as one is, its edges on luma (`bench_bayer`); so is a raw
+                          # frame's, demosaiced above
+                          compressed=(is_jpeg(image_path) or setup.camera.demosaiced
+                                      or setup.camera.mosaic is not None),
                           blur_domain=blur_domain, workers=workers, cube_size_std=cube_size_std,
                           floor_height=floor_height, floor_std=floor_std,
                           setup_std=setup.uncertainty.build() if carried else None)
     except DepthError as exc:
         raise CatadioptricError(f"{image_path}: {exc}") from None
-    return setup, setup_path, image, rec
+    return setup, setup_path, as_codes(image), rec
 
 
-def result_dict(image_path, setup_path, rec) -> dict:
+def result_dict(image_path, setup_path, rec, demosaic: str | None = None) -> dict:
     """The reconstruct result of SETUP_FORMAT.md (plus `refused`, the method used, when faces were blurred
-    `blur_domain`, and when the cubes were taken to stand on a floor `floor`: its height along the mirror's axis
-    from the mirror's centre and that height's σ, metres)."""
+    `blur_domain`, when the cubes were taken to stand on a floor `floor`: its height along the mirror's axis
+    from the mirror's centre and that height's σ, metres, and when the image was a raw Bayer frame the `demosaic`
+    that made it an image)."""
     out = {"image": Path(image_path).name, "setup": Path(setup_path).name, "method": rec.method,
            "cubes": [c.to_dict() for c in rec.cubes], "refused": [r.to_dict() for r in rec.refused]}
+    if demosaic is not None:  # a raw Bayer frame: how it was made an image (`raw_demosaic`)
+        out["demosaic"] = demosaic
     if rec.blur_domain is not None:  # blurred faces: where their blur was taken to act
         out["blur_domain"] = rec.blur_domain
     if getattr(rec, "floor", None) is not None:  # the floor the cubes were taken to stand on

@@ -78,6 +78,16 @@ def _read_result(path: Path) -> dict:
     return result
 
 
+def _demosaic_of(result: dict, path: Path) -> str | None:
+    """The `demosaic` a result's raw Bayer frame was made an image by (None where it names none); one-line error
+    for one `depth.chroma.from_raw_frame` does not know."""
+    from depth.chroma import DEMOSAICS
+    demosaic = result.get("demosaic")
+    if demosaic is not None and demosaic not in DEMOSAICS:
+        raise CatadioptricError(f"{path}: demosaic: expected one of {', '.join(DEMOSAICS)}, got {demosaic!r}")
+    return demosaic
+
+
 def load_input(input_path, setup_path=None, method=None, progress=None) -> ReportInput:
     """An image (reconstructed now) or a RESULT.json (read, with its setup and image beside it)."""
     from catadioptric import reconstruct as rc
@@ -98,7 +108,7 @@ def load_input(input_path, setup_path=None, method=None, progress=None) -> Repor
         if isinstance(img_name, str) and img_name:
             img_path = path.parent / img_name
             if img_path.is_file():
-                image = rc.read_image(img_path)
+                image = rc.camera_image(img_path, setup, setup_path, _demosaic_of(result, path))
                 w, h = setup.camera.resolution
                 if image.shape[:2] != (h, w):
                     raise CatadioptricError(f"{img_path}: expected {w}×{h} pixels ({setup_path}: camera.resolution), "
@@ -109,7 +119,7 @@ def load_input(input_path, setup_path=None, method=None, progress=None) -> Repor
         return ReportInput(setup=setup, setup_path=Path(setup_path), result=result, image=image, truth=truth,
                            notes=notes)
     setup, setup_path, image, rec = rc.run_reconstruction(path, setup_path, method, progress=progress)
-    result = rc.result_dict(path, setup_path, rec)
+    result = rc.result_dict(path, setup_path, rec, rc.raw_demosaic(setup))
     return ReportInput(setup=setup, setup_path=Path(setup_path), result=result, image=image,
                        truth=truth_beside(path), rec=rec)
 

@@ -152,6 +152,23 @@ def _response(d: dict, w: _Where):
         raise SetupError(f"{w.source}: {exc}") from None
 
 
+def _mosaic(d: dict, w: _Where) -> str | None:
+    """`[camera] mosaic`: the Bayer filter tile of a camera whose images are its raw frames, or None where absent.
+    Such a frame's values are light (linear): no `response`; and it is demosaiced here, not `demosaiced` already."""
+    if "mosaic" not in d:
+        return None
+    from raytrace.chroma import BAYER_PATTERNS
+    expected = "a Bayer filter tile, its 2 × 2 colours row by row: " + ", ".join(f'"{p}"' for p in BAYER_PATTERNS)
+    value = d["mosaic"]
+    if not isinstance(value, str) or value.upper() not in BAYER_PATTERNS:
+        raise w.error("mosaic", expected, value)
+    for other, why in (("response", "a raw frame's values are light, linear"),
+                       ("demosaiced", "a raw frame is demosaiced by reconstruct")):
+        if other in d:
+            raise w.error(other, f"no {other} key with camera.mosaic ({why})", d[other])
+    return value.upper()
+
+
 @dataclass(frozen=True)
 class ChannelConfig:
     """`[camera.red]` or `[camera.blue]`: that colour channel's own intrinsics (lateral chromatic aberration,
@@ -206,9 +223,10 @@ class CameraConfig:
     red: ChannelConfig | None = None  # that channel's own intrinsics (lateral chromatic aberration); None: green's
     blue: ChannelConfig | None = None
     demosaiced: bool = False  # its images are demosaiced from an RGGB Bayer mosaic
+    mosaic: str | None = None  # its images are raw Bayer frames of this filter tile ("RGGB", ...); None: RGB images
 
     KEYS: ClassVar[set] = {"resolution", "focal_px", "principal_px", "position", "look_at", "up", "distortion",
-                           "response", "red", "blue", "demosaiced"}
+                           "response", "red", "blue", "demosaiced", "mosaic"}
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "<dict>", prefix: str = "camera.") -> "CameraConfig":
@@ -227,7 +245,8 @@ class CameraConfig:
                   red=ChannelConfig.from_dict(d["red"], w, "red") if "red" in d else None,
                   blue=ChannelConfig.from_dict(d["blue"], w, "blue") if "blue" in d else None,
                   demosaiced=_boolean(d, "demosaiced", w, "true where the camera's images are demosaiced from an "
-                                      "RGGB Bayer mosaic"))
+                                      "RGGB Bayer mosaic"),
+                  mosaic=_mosaic(d, w))
         view = np.subtract(cam.look_at, cam.position)
         if np.linalg.norm(view) == 0:
             raise w.error("look_at", "a point different from camera.position", list(cam.look_at))
@@ -276,6 +295,8 @@ class CameraConfig:
                 d[name] = getattr(self, name).to_dict()
         if self.demosaiced:
             d["demosaiced"] = True
+        if self.mosaic is not None:
+            d["mosaic"] = self.mosaic
         return d
 
     def build(self):

@@ -80,14 +80,28 @@ def _gt_arrays(r) -> dict:
 
 def _png(sim: Simulation) -> bytes:
     """OUT.png's bytes: the render stored as the setup's camera stores light (`[camera] response`; sRGB), demosaiced
-    from an RGGB mosaic of it where the camera's images are (`[camera] demosaiced`: OpenCV's VNG)."""
+    from an RGGB mosaic of it where the camera's images are (`[camera] demosaiced`: OpenCV's VNG), or the raw Bayer
+    frame of it where they are such frames (`[camera] mosaic`)."""
     from raytrace.render import linear_to_srgb8
+    if sim.setup.camera.mosaic is not None:
+        return _raw_frame_png(sim.render.image, sim.setup.camera.mosaic)
     response = sim.setup.camera.response
     codes = linear_to_srgb8(sim.render.image) if response is None else response.encode8(sim.render.image)
     if sim.setup.camera.demosaiced:
         from raytrace.chroma import demosaiced
         codes = demosaiced(codes)
     return encode_png(codes)
+
+
+def _raw_frame_png(light, pattern: str) -> bytes:
+    """A 16-bit one-channel PNG's bytes: the raw Bayer frame (filter tile `pattern`) a sensor records of the render's
+    linear light, 0 none and 65535 full scale (each pixel its filter's channel, rounded)."""
+    from raytrace.chroma import bayer_mosaic
+    frame = np.round(np.clip(bayer_mosaic(np.asarray(light), pattern), 0.0, 1.0) * 65535.0).astype(np.uint16)
+    from PIL import Image
+    buf = io.BytesIO()
+    Image.fromarray(frame).save(buf, "PNG", compress_level=3)  # (mode I;16: 16-bit grey)
+    return buf.getvalue()
 
 
 def _write_rest(out: OutputSet, sim: Simulation, paths: dict, png: bytes | None = None) -> None:

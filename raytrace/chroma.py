@@ -23,7 +23,7 @@ from .errors import RaytraceError
 from .lens import as_distortion, distort, undistort
 
 __all__ = ["CHANNELS", "ChannelLens", "ChannelCalibration", "as_channel_lens", "channel_pixels", "calibrate_channels",
-           "bayer_mosaic", "demosaiced"]
+           "BAYER_PATTERNS", "bayer_channels", "bayer_mosaic", "demosaiced", "demosaiced_mosaic"]
 
 CHANNELS = ("red", "blue")
 """The channels that may have a lens of their own, against green (the camera's)."""
@@ -226,23 +226,46 @@ def calibrate_channels(images, board: tuple[int, int], square: float) -> Channel
     return calibration
 
 
-def bayer_mosaic(image) -> np.ndarray:
-    """(H, W) uint8: what an RGGB Bayer sensor records of an (H, W, 3) uint8 RGB image, each pixel its own colour
-    filter's channel (red at even rows and columns, blue at odd ones, green between)."""
+BAYER_PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")
+"""A Bayer colour filter mosaic's 2 × 2 tile, read row by row from the sensor's first pixel: "RGGB" has red at even
+rows and even columns, blue at odd rows and odd columns, green between."""
+
+
+def bayer_channels(pattern: str, shape: tuple[int, int]) -> np.ndarray:
+    """(H, W) intp: the channel (0 red, 1 green, 2 blue) each pixel of a `pattern` mosaic of `shape` records."""
+    if pattern not in BAYER_PATTERNS:
+        raise RaytraceError(f"pattern: expected one of {', '.join(BAYER_PATTERNS)}, got {pattern!r}")
+    tile = np.array(["RGB".index(c) for c in pattern], dtype=np.intp).reshape(2, 2)
+    h, w = shape
+    return np.tile(tile, ((h + 1) // 2, (w + 1) // 2))[:h, :w]
+
+
+def bayer_mosaic(image, pattern: str = "RGGB") -> np.ndarray:
+    """(H, W), of the image's dtype: what a Bayer sensor with the colour filter tile `pattern` (`BAYER_PATTERNS`)
+    records of an (H, W, 3) RGB image (uint8, uint16 or float), each pixel its own filter's channel."""
     img = np.asarray(image)
-    if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
+    if img.ndim != 3 or img.shape[2] != 3:
+        raise RaytraceError(f"image: expected an (H, W, 3) RGB image (uint8, uint16 or float), got {img.dtype} "
+                            f"{img.shape}")
+    channel = bayer_channels(pattern, img.shape[:2])
+    return np.take_along_axis(img, channel[..., None], axis=2)[..., 0]
+
+
+def demosaiced(image, pattern: str = "RGGB") -> np.ndarray:
+    """The (H, W, 3) uint8 RGB image a Bayer camera (filter tile `pattern`) makes of the uint8 RGB `image`: its mosaic
+    (`bayer_mosaic`) demosaiced by OpenCV's variable number of gradients (`cv2.COLOR_Bayer...2RGB_VNG`). Each channel
+    keeps its own samples; red and blue are interpolated over three pixels of four, green over one of two."""
+    img = np.asarray(image)
+    if img.dtype != np.uint8:
         raise RaytraceError(f"image: expected an (H, W, 3) uint8 RGB image, got {img.dtype} {img.shape}")
-    raw = np.empty(img.shape[:2], np.uint8)
-    raw[0::2, 0::2] = img[0::2, 0::2, 0]
-    raw[0::2, 1::2] = img[0::2, 1::2, 1]
-    raw[1::2, 0::2] = img[1::2, 0::2, 1]
-    raw[1::2, 1::2] = img[1::2, 1::2, 2]
-    return raw
+    return demosaiced_mosaic(bayer_mosaic(img, pattern), pattern)
 
 
-def demosaiced(image) -> np.ndarray:
-    """The (H, W, 3) uint8 RGB image an RGGB Bayer camera makes of `image`: its mosaic (`bayer_mosaic`) demosaiced by
-    OpenCV's variable number of gradients (`cv2.COLOR_BayerRGGB2RGB_VNG`). Each channel keeps its own samples; red and
-    blue are interpolated over three pixels of four, green over one of two."""
+def demosaiced_mosaic(mosaic, pattern: str = "RGGB") -> np.ndarray:
+    """(H, W, 3) uint8 RGB: an (H, W) uint8 `pattern` mosaic of sRGB codes demosaiced by OpenCV's VNG (8-bit only)."""
     import cv2
-    return cv2.cvtColor(bayer_mosaic(image), cv2.COLOR_BayerRGGB2RGB_VNG)
+    raw = np.asarray(mosaic)
+    if raw.dtype != np.uint8 or raw.ndim != 2:
+        raise RaytraceError(f"mosaic: expected an (H, W) uint8 mosaic, got {raw.dtype} {raw.shape}")
+    bayer_channels(pattern, (2, 2))  # (the pattern checked)
+    return cv2.cvtColor(np.ascontiguousarray(raw), getattr(cv2, f"COLOR_Bayer{pattern}2RGB_VNG"))

@@ -100,6 +100,26 @@ def test_a_demosaiced_camera_is_optional_and_round_trips(valid_setup, write_setu
     assert "demosaiced" not in setup_to_toml(load_setup(write_setup(valid_setup)))
 
 
+def test_a_raw_frame_camera_s_mosaic_is_optional_any_case_and_round_trips(valid_setup, write_setup, tmp_path):
+    assert load_setup(write_setup(valid_setup)).camera.mosaic is None
+    valid_setup["camera"]["mosaic"] = "gbrg"
+    s = load_setup(write_setup(valid_setup))
+    assert s.camera.mosaic == "GBRG"
+    p = tmp_path / "again.toml"
+    save_setup(s, p)
+    assert load_setup(p) == s and 'mosaic = "GBRG"' in p.read_text()
+
+
+@pytest.mark.parametrize("other, value, why", [("response", "linear", "a raw frame's values are light, linear"),
+                                               ("demosaiced", True, "a raw frame is demosaiced by reconstruct")])
+def test_a_raw_frame_camera_takes_no_response_nor_demosaiced_key(valid_setup, write_setup, other, value, why):
+    valid_setup["camera"].update({"mosaic": "RGGB", other: value})
+    path = write_setup(valid_setup, "bad.toml")
+    with pytest.raises(SetupError, match=f"^{path}: camera.{other}: expected no {other} key with camera.mosaic "
+                                         f"\\({why}\\), got {value!r}$"):
+        load_setup(path)
+
+
 def test_builtin_demo_setup_is_valid():
     from importlib.resources import files
     s = load_setup(files("catadioptric") / "data" / "demo.toml")
@@ -150,6 +170,9 @@ BAD = [
     ("camera.response", [1.0] * 256, "camera.response: expected a table rising with the code .* channel 0 is flat"),
     ("camera.demosaiced", "yes", "camera.demosaiced: expected true or false \\(true where the camera's images are "
                                  "demosaiced from an RGGB Bayer mosaic\\), got 'yes'"),
+    ("camera.mosaic", "RGBG", 'camera.mosaic: expected a Bayer filter tile, its 2 × 2 colours row by row: "RGGB", '
+                              '"BGGR", "GRBG", "GBRG", got \'RGBG\''),
+    ("camera.mosaic", True, "camera.mosaic: expected a Bayer filter tile, .* got True"),
     ("camera.red", [1.0], "camera.red: expected a table, got list"),
     ("camera.red", {}, "camera.red: expected at least one of focal_px, principal_px, distortion"),
     ("camera.red", {"focal": [350.0, 350.0]}, "camera.red.focal: unknown key"),

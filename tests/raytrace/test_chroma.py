@@ -117,9 +117,31 @@ def test_a_bayer_mosaic_keeps_each_pixel_s_own_filter_channel_and_demosaicing_ke
     made = demosaiced(edge)
     own = np.take_along_axis(made, channel_of(32, 40)[..., None], axis=2)
     np.testing.assert_array_equal(own[..., 0], bayer_mosaic(edge))  # the samples recorded are kept as they are
-    with pytest.raises(RaytraceError, match=r"image: expected an \(H, W, 3\) uint8 RGB image"):
+    with pytest.raises(RaytraceError, match=r"image: expected an \(H, W, 3\) RGB image \(uint8, uint16 or float\), "
+                                            r"got uint8 \(4, 4\)$"):
         bayer_mosaic(np.zeros((4, 4), np.uint8))
+    with pytest.raises(RaytraceError, match=r"image: expected an \(H, W, 3\) uint8 RGB image, got uint16"):
+        demosaiced(np.zeros((4, 4, 3), np.uint16))
 
+
+
+@pytest.mark.parametrize("pattern, first_row, second_row", [("RGGB", (0, 1), (1, 2)), ("BGGR", (2, 1), (1, 0)),
+                                                            ("GRBG", (1, 0), (2, 1)), ("GBRG", (1, 2), (0, 1))])
+def test_each_bayer_pattern_records_its_tile_and_demosaics_a_colour_back_to_itself(pattern, first_row, second_row):
+    """A pattern's 2 × 2 tile, read row by row: its samples where the tile says, and OpenCV's code for it (which
+    names its tiles otherwise in older releases) giving a flat colour back in its channels' order."""
+    from raytrace.chroma import BAYER_PATTERNS, bayer_mosaic, demosaiced
+    assert pattern in BAYER_PATTERNS
+    img = np.zeros((4, 6, 3), np.uint16)
+    img[..., 0], img[..., 1], img[..., 2] = 1000, 2000, 3000
+    raw = bayer_mosaic(img, pattern)
+    assert raw.dtype == np.uint16
+    want = np.array([[1000, 2000, 3000][c] for c in first_row + second_row]).reshape(2, 2)
+    np.testing.assert_array_equal(raw, np.tile(want, (2, 3)))
+    flat = np.broadcast_to(np.array([200, 90, 20], np.uint8), (32, 40, 3)).copy()
+    np.testing.assert_array_equal(demosaiced(flat, pattern)[4:-4, 4:-4], flat[4:-4, 4:-4])
+    with pytest.raises(RaytraceError, match=r"pattern: expected one of RGGB, BGGR, GRBG, GBRG, got 'RGBG'"):
+        bayer_mosaic(img, "RGBG")
 
 def channel_of(h, w):
     """Each pixel's filter of an RGGB mosaic: red (0) at even rows and columns, blue (2) at odd ones, green (1)."""

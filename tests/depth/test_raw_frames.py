@@ -1,0 +1,99 @@
+"""`depth.chroma.from_raw_frame`: a camera's raw Bayer frame (each pixel its filter's sample of linear light) made
+into the sRGB image `reconstruct` reads, by each of its demosaics."""
+
+import numpy as np
+import pytest
+
+from depth.chroma import DEMOSAIC, DEMOSAICS, from_raw_frame
+from depth.errors import DepthError
+
+
+def _srgb(light):
+    """IEC 61966-2-1's encoding, written out here."""
+    light = np.asarray(light, dtype=np.float64)
+    return np.where(light <= 0.0031308, 12.92 * light, 1.055 * light ** (1 / 2.4) - 0.055)
+
+
+def _flat_frame(light_rgb, pattern, shape=(24, 32), dtype=np.uint16):
+    """A frame of one colour of light: each pixel its filter's channel, at the type's full scale."""
+    full = np.iinfo(dtype).max
+    tile = np.array([light_rgb["RGB".index(c)] for c in pattern]).reshape(2, 2)
+    return np.round(np.tile(tile, (shape[0] // 2, shape[1] // 2)) * full).astype(dtype)
+
+
+@pytest.mark.parametrize("pattern", ["RGGB", "BGGR", "GRBG", "GBRG"])
+@pytest.mark.parametrize("demosaic", DEMOSAICS)
+def test_a_flat_colour_of_light_comes_back_as_its_srgb_encoding(pattern, demosaic):
+    light = (0.5, 0.2, 0.05)
+    got = from_raw_frame(_flat_frame(light, pattern), pattern, demosaic)[4:-4, 4:-4]
+    want = _srgb(np.round(np.array(light) * 65535) / 65535)
+    if demosaic == "VNG":  # (its codes: the light stored as 8-bit sRGB, then demosaiced)
+        assert got.dtype == np.uint8
+        np.testing.assert_array_equal(got, np.broadcast_to(np.round(want * 255).astype(np.uint8), got.shape))
+    else:  # (two-colour's passes work in float32)
+        assert got.dtype == np.float64
+        atol = 1e-7 if demosaic == "two-colour" else 1e-12
+        np.testing.assert_allclose(got, np.broadcast_to(want, got.shape), rtol=0, atol=atol)
+
+
+def test_an_8_bit_frame_s_full_scale_is_255():
+    frame = _flat_frame((1.0, 0.5, 0.0), "RGGB", dtype=np.uint8)  # 255, 128, 0
+    got = from_raw_frame(frame, "RGGB", "bilinear")[4:-4, 4:-4]
+    np.testing.assert_allclose(got[..., 1], _srgb(128 / 255), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(got[..., 0], 1.0, rtol=0, atol=1e-12)
+
+
+def _step_placed(demosaic, edge, a=(0.6, 0.3, 0.1), b=(0.1, 0.4, 0.5), pattern="RGGB"):
+    """Where each channel of a demosaiced frame puts a vertical step of light between colours a (left) and b, the
+    pixels area-sampled with the step at x = `edge`: per channel, the mean over rows of the area under each row's
+    share of the step, read back in light."""
+    h, w = 16, 32
+    a, b = np.array(a), np.array(b)
+    share = np.clip(edge - np.arange(w), 0.0, 1.0)  # the share of each pixel left of the edge
+    light = np.broadcast_to(b + share[None, :, None] * (a - b), (h, w, 3))
+    from raytrace.chroma import bayer_mosaic
+    frame = np.round(bayer_mosaic(light, pattern) * 65535).astype(np.uint16)
+    got = np.asarray(from_raw_frame(frame, pattern, demosaic), dtype=np.float64)
+    got = (got / 255.0 if got.dtype == np.float64 and demosaic == "VNG" else got)[4:-4, 2:-2]
+    from raytrace.response import srgb_to_linear
+    with np.errstate(divide="ignore", invalid="ignore"):  # (a channel that does not step: NaN)
+        shares = (srgb_to_linear(got) - b) / (a - b)
+        return (shares.sum(axis=1) + 2.0).mean(axis=0)  # (from x = 0)
+
+
+EDGES = np.arange(14.0, 16.0, 0.1)
+
+
+def test_two_colour_places_a_step_in_every_channel_where_the_light_steps():
+    for pattern in ("RGGB", "GBRG"):
+        off = np.array([_step_placed("two-colour", e, pattern=pattern) - e for e in EDGES])
+        assert np.abs(off).max() < 0.03, (pattern, np.abs(off).max(axis=0))
+    # a step darker in every channel, and one in green alone
+    for a, b in (((0.5, 0.5, 0.5), (0.05, 0.1, 0.02)), ((0.2, 0.6, 0.2), (0.2, 0.1, 0.2))):
+        off = np.array([_step_placed("two-colour", e, a, b) - e for e in EDGES])
+        assert np.abs(off[:, 1]).max() < 0.03
+        if a[0] != b[0]:
+            assert np.abs(off).max() < 0.03
+
+
+def test_bilinear_places_green_s_step_and_red_and_blue_s_within_half_a_pixel():
+    """The other demosaics' bounds, which `two-colour` betters: bilinear's green (a quincunx, whose two rows' samples
+    interleave) keeps a step's place; its red and blue, sampled every second column, alias by up to half a pixel."""
+    off = np.array([_step_placed("bilinear", e) - e for e in EDGES])
+    assert np.abs(off[:, 1]).max() < 0.005
+    assert 0.3 < np.abs(off[:, [0, 2]]).max() <= 0.5 + 1e-3
+
+
+def test_frames_and_arguments_it_cannot_read_are_refused():
+    frame = np.zeros((8, 8), np.uint16)
+    with pytest.raises(DepthError, match=r"^frame: expected an \(H, W\) uint8 or uint16 raw Bayer frame, got uint16 "
+                                         r"\(8, 8, 3\)$"):
+        from_raw_frame(np.zeros((8, 8, 3), np.uint16), "RGGB")
+    with pytest.raises(DepthError, match=r"^frame: expected .* got float32 \(8, 8\)$"):
+        from_raw_frame(np.zeros((8, 8), np.float32), "RGGB")
+    with pytest.raises(DepthError, match=r"^pattern: expected one of RGGB, BGGR, GRBG, GBRG, got 'rggb'$"):
+        from_raw_frame(frame, "rggb")
+    with pytest.raises(DepthError, match=r"^demosaic: expected one of VNG, bilinear, edge-aware, two-colour, "
+                                         r"got 'AHD'$"):
+        from_raw_frame(frame, "RGGB", "AHD")
+    assert DEMOSAIC in DEMOSAICS
