@@ -10,6 +10,7 @@ import pytest
 from catadioptric.cli import main
 from catadioptric.setup import load_setup
 from raytrace.chroma import bayer_mosaic
+from cli_errors import one_line_error
 
 
 SAME_M = 1e-6
@@ -84,11 +85,11 @@ def test_reconstruct_takes_another_demosaic_and_refuses_one_for_an_rgb_camera(re
     np.testing.assert_allclose([c["center"] for c in result["cubes"]], [c.to_dict()["center"] for c in want],
                                rtol=0, atol=SAME_M)
     capsys.readouterr()
-    _bad(capsys, tmp_path, ["reconstruct", str(rendered / "plain.png"), "-o", str(tmp_path / "o.json"),
+    one_line_error(capsys, tmp_path, ["reconstruct", str(rendered / "plain.png"), "-o", str(tmp_path / "o.json"),
                             "--demosaic", "VNG"],
          f"--demosaic: {rendered / 'plain.toml'} has no [camera] mosaic: its camera's images are RGB, not raw Bayer "
          "frames")
-    _bad(capsys, tmp_path, ["reconstruct", str(rendered / "mirror.png"), "-o", str(tmp_path / "o.json"),
+    one_line_error(capsys, tmp_path, ["reconstruct", str(rendered / "mirror.png"), "-o", str(tmp_path / "o.json"),
                             "--demosaic", "AHD"],
          "--demosaic: expected one of VNG, bilinear, edge-aware, two-colour, got 'AHD'")
 
@@ -110,17 +111,8 @@ def test_report_draws_on_the_frame_demosaiced_as_the_result_says(rendered, tmp_p
     result["demosaic"] = "AHD"
     (rendered / "ahd.json").write_text(json.dumps(result))
     capsys.readouterr()
-    _bad(capsys, tmp_path, ["report", str(rendered / "ahd.json"), "-o", str(tmp_path / "ahd")],
+    one_line_error(capsys, tmp_path, ["report", str(rendered / "ahd.json"), "-o", str(tmp_path / "ahd")],
          "ahd.json: demosaic: expected one of VNG, bilinear, edge-aware, two-colour, got 'AHD'")
-
-
-def _bad(capsys, folder, argv, message):
-    before = sorted(p.name for p in folder.iterdir())
-    code = main(argv)
-    err = capsys.readouterr().err
-    assert code == 1, err
-    assert err.count("\n") == 1 and "Traceback" not in err and message in err, err
-    assert sorted(p.name for p in folder.iterdir()) == before
 
 
 def test_frames_a_raw_frame_camera_cannot_read_get_one_line(rendered, tmp_path, capsys):
@@ -128,19 +120,19 @@ def test_frames_a_raw_frame_camera_cannot_read_get_one_line(rendered, tmp_path, 
     out = ["-o", str(tmp_path / "o.json")]
     frame = cv2.imread(str(rendered / "mirror.png"), cv2.IMREAD_UNCHANGED)
     key = f"({setup}: camera.mosaic GRBG)"
-    _bad(capsys, tmp_path, ["reconstruct", str(rendered / "plain.png"), "--setup", setup, *out],
+    one_line_error(capsys, tmp_path, ["reconstruct", str(rendered / "plain.png"), "--setup", setup, *out],
          f"plain.png: expected a one-channel raw Bayer frame {key}, got an image of 3 channels")
     cv2.imwrite(str(tmp_path / "float.tiff"), (frame / 65535.0).astype(np.float32))
-    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "float.tiff"), "--setup", setup, *out],
+    one_line_error(capsys, tmp_path, ["reconstruct", str(tmp_path / "float.tiff"), "--setup", setup, *out],
          f"float.tiff: expected an 8- or 16-bit raw Bayer frame {key}, got 32-bit floats")
     cv2.imwrite(str(tmp_path / "frame.jpg"), (frame >> 8).astype(np.uint8))
-    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "frame.jpg"), "--setup", setup, *out],
+    one_line_error(capsys, tmp_path, ["reconstruct", str(tmp_path / "frame.jpg"), "--setup", setup, *out],
          f"frame.jpg: expected a raw Bayer frame stored losslessly, PNG or TIFF {key}, got a JPEG file")
     cv2.imwrite(str(tmp_path / "small.png"), frame[:100, :120])
-    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "small.png"), "--setup", setup, *out],
+    one_line_error(capsys, tmp_path, ["reconstruct", str(tmp_path / "small.png"), "--setup", setup, *out],
          "small.png: expected 1600×1200 pixels")
     # and a frame read without the key: the error says what it lacks
     cv2.imwrite(str(tmp_path / "frame.png"), frame)
-    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "frame.png"), "--setup", str(rendered / "plain.toml"), *out],
+    one_line_error(capsys, tmp_path, ["reconstruct", str(tmp_path / "frame.png"), "--setup", str(rendered / "plain.toml"), *out],
          "frame.png: expected an RGB colour image, got a grayscale image (a camera's raw Bayer frame? its setup says "
          "so: [camera] mosaic)")

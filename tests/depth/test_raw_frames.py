@@ -36,11 +36,59 @@ def test_a_flat_colour_of_light_comes_back_as_its_srgb_encoding(pattern, demosai
         np.testing.assert_allclose(got, np.broadcast_to(want, got.shape), rtol=0, atol=atol)
 
 
-def test_an_8_bit_frame_s_full_scale_is_255():
+@pytest.mark.parametrize("demosaic", DEMOSAICS)
+def test_an_8_bit_frame_s_full_scale_is_255(demosaic):
     frame = _flat_frame((1.0, 0.5, 0.0), "RGGB", dtype=np.uint8)  # 255, 128, 0
-    got = from_raw_frame(frame, "RGGB", "bilinear")[4:-4, 4:-4]
-    np.testing.assert_allclose(got[..., 1], _srgb(128 / 255), rtol=0, atol=1e-12)
-    np.testing.assert_allclose(got[..., 0], 1.0, rtol=0, atol=1e-12)
+    got = np.asarray(from_raw_frame(frame, "RGGB", demosaic)[4:-4, 4:-4], dtype=np.float64)
+    got = got / 255.0 if demosaic == "VNG" else got
+    atol = 0.5 / 255 if demosaic == "VNG" else 1e-7  # (VNG's 8-bit codes; two-colour's float32)
+    np.testing.assert_allclose(got[..., 1], _srgb(128 / 255), rtol=0, atol=atol)
+    np.testing.assert_allclose(got[..., 0], 1.0, rtol=0, atol=atol)
+
+
+@pytest.mark.parametrize("demosaic, code", [("bilinear", "COLOR_BayerGRBG2RGB"),
+                                           ("edge-aware", "COLOR_BayerGRBG2RGB_EA")])
+def test_opencv_s_demosaics_run_on_the_frame_s_linear_values(demosaic, code):
+    """"bilinear" and "edge-aware" are OpenCV's on the 16-bit values, then encoded as sRGB (here written out)."""
+    import cv2
+    frame = np.random.default_rng(4).integers(0, 65536, (24, 32), dtype=np.uint16)
+    want = _srgb(cv2.cvtColor(frame, getattr(cv2, code)) / 65535.0)
+    np.testing.assert_allclose(from_raw_frame(frame, "GRBG", demosaic), want, rtol=0, atol=1e-12)
+
+
+def _three_colours():
+    """A face (16 × 16 px), its top face 2 px tall below it and the background: light (H, W, 3) and its RGGB frame."""
+    from raytrace.chroma import bayer_mosaic
+    light = np.empty((32, 32, 3))
+    light[:] = (0.6, 0.6, 0.6)
+    light[4:20, 8:24] = (0.7, 0.25, 0.55)
+    light[20:22, 8:24] = (0.35, 0.12, 0.28)
+    return light, np.round(bayer_mosaic(light, "RGGB") * 65535).astype(np.uint16)
+
+
+def test_two_colour_takes_vng_s_colour_where_three_colours_meet(monkeypatch):
+    """Where a window's colours lie off any one line (over `TWO_COLOUR_OFF_LINE`'s second share of their variance),
+    the pixel is VNG's; where they lie on one (under the first), the passes'. On a face with a 2 px top face below it,
+    the passes alone leave the worst pixel further off (their line through two of the three colours)."""
+    import depth.chroma as chroma
+    from raytrace.response import srgb_to_linear
+    light, frame = _three_colours()
+    got = srgb_to_linear(from_raw_frame(frame, "RGGB", "two-colour"))
+    passes = np.moveaxis(chroma._two_colour_passes((frame / 65535.0).astype(np.float32), chroma._tile("RGGB")), 0, -1)
+    share = chroma._off_line_share(np.moveaxis(passes, -1, 0))
+    vng = srgb_to_linear(from_raw_frame(frame, "RGGB", "VNG") / 255.0)
+    lo, hi = chroma.TWO_COLOUR_OFF_LINE
+    assert (share >= hi).sum() > 50 and (share <= lo).sum() > 500
+    np.testing.assert_allclose(got[share >= hi], vng[share >= hi], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(got[share <= lo], passes[share <= lo], rtol=0, atol=1e-6)
+    between = (share > lo) & (share < hi)  # (a mix, the passes' share falling evenly from lo to hi)
+    weight = ((hi - share[between]) / (hi - lo))[:, None]
+    assert between.sum() > 10
+    np.testing.assert_allclose(got[between], weight * passes[between] + (1 - weight) * vng[between], rtol=0, atol=1e-6)
+    blended = np.abs(got - light).max()
+    monkeypatch.setattr(chroma, "TWO_COLOUR_OFF_LINE", (2.0, 3.0))  # (no share reaches it: the passes alone)
+    alone = np.abs(srgb_to_linear(from_raw_frame(frame, "RGGB", "two-colour")) - light).max()
+    assert blended < 0.85 * alone, (blended, alone)
 
 
 def _step_placed(demosaic, edge, a=(0.6, 0.3, 0.1), b=(0.1, 0.4, 0.5), pattern="RGGB"):
