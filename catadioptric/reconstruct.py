@@ -113,8 +113,16 @@ def _camera_image(decoded, path, setup, setup_path, demosaic=None) -> np.ndarray
     if frame.shape != (h, w):
         raise CatadioptricError(f"{path}: expected {w}×{h} pixels ({setup_path}: camera.resolution), "
                                 f"got {frame.shape[1]}×{frame.shape[0]}")
+    cam = setup.camera
+    most = np.iinfo(frame.dtype).max
+    if cam.black_level >= most or (cam.white_level or 0) > most:
+        level = "white_level" if (cam.white_level or 0) > most else "black_level"
+        bits = frame.dtype.itemsize * 8
+        raise CatadioptricError(f"{path}: {'an' if bits == 8 else 'a'} {bits}-bit frame's values reach {most}, under "
+                                f"{setup_path}: camera.{level} {getattr(cam, level):g}")
     from depth.chroma import from_raw_frame
-    return from_raw_frame(frame, pattern, raw_demosaic(setup, demosaic))
+    return from_raw_frame(frame, pattern, raw_demosaic(setup, demosaic), cam.black_level, cam.white_level,
+                          cam.white_balance)
 
 
 def _rgb_image(img, path) -> np.ndarray:

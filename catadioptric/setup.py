@@ -169,6 +169,26 @@ def _mosaic(d: dict, w: _Where) -> str | None:
     return value.upper()
 
 
+RAW_LEVEL_KEYS = ("black_level", "white_level", "white_balance")
+"""`[camera]` keys of a raw Bayer frame's values (with `mosaic` alone)."""
+
+
+def _raw_levels(d: dict, w: _Where) -> dict:
+    """`[camera]`'s black_level, white_level and white_balance (with `mosaic` alone) as CameraConfig's fields."""
+    given = [k for k in RAW_LEVEL_KEYS if k in d]
+    if not given:
+        return {}
+    if "mosaic" not in d:
+        raise w.error(given[0], "no raw frame's level or gains without camera.mosaic (the images are raw Bayer frames)",
+                      d[given[0]])
+    black = _number(d, "black_level", w, lo=0.0, hi=65535.0, default=0.0)
+    white = _number(d, "white_level", w, lo=0.0, hi=65535.0) if "white_level" in d else None
+    if white is not None and not white > black:
+        raise w.error("white_level", f"a value above camera.black_level ({black:g})", d["white_level"])
+    gains = _vector(d, "white_balance", w, 3, positive=True) if "white_balance" in d else None
+    return {"black_level": black, "white_level": white, "white_balance": gains}
+
+
 @dataclass(frozen=True)
 class ChannelConfig:
     """`[camera.red]` or `[camera.blue]`: that colour channel's own intrinsics (lateral chromatic aberration,
@@ -224,9 +244,13 @@ class CameraConfig:
     blue: ChannelConfig | None = None
     demosaiced: bool = False  # its images are demosaiced from an RGGB Bayer mosaic
     mosaic: str | None = None  # its images are raw Bayer frames of this filter tile ("RGGB", ...); None: RGB images
+    black_level: float = 0.0  # a raw frame's value of no light
+    white_level: float | None = None  # its value of full scale; None: its type's maximum (255, 65535)
+    white_balance: tuple[float, float, float] | None = None  # its red, green and blue gains; None: 1, 1, 1
 
     KEYS: ClassVar[set] = {"resolution", "focal_px", "principal_px", "position", "look_at", "up", "distortion",
-                           "response", "red", "blue", "demosaiced", "mosaic"}
+                           "response", "red", "blue", "demosaiced", "mosaic", "black_level", "white_level",
+                           "white_balance"}
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "<dict>", prefix: str = "camera.") -> "CameraConfig":
@@ -246,7 +270,7 @@ class CameraConfig:
                   blue=ChannelConfig.from_dict(d["blue"], w, "blue") if "blue" in d else None,
                   demosaiced=_boolean(d, "demosaiced", w, "true where the camera's images are demosaiced from an "
                                       "RGGB Bayer mosaic"),
-                  mosaic=_mosaic(d, w))
+                  mosaic=_mosaic(d, w), **_raw_levels(d, w))
         view = np.subtract(cam.look_at, cam.position)
         if np.linalg.norm(view) == 0:
             raise w.error("look_at", "a point different from camera.position", list(cam.look_at))
@@ -297,6 +321,12 @@ class CameraConfig:
             d["demosaiced"] = True
         if self.mosaic is not None:
             d["mosaic"] = self.mosaic
+        if self.black_level:
+            d["black_level"] = self.black_level
+        if self.white_level is not None:
+            d["white_level"] = self.white_level
+        if self.white_balance is not None:
+            d["white_balance"] = list(self.white_balance)
         return d
 
     def build(self):

@@ -84,7 +84,7 @@ def _png(sim: Simulation) -> bytes:
     frame of it where they are such frames (`[camera] mosaic`)."""
     from raytrace.render import linear_to_srgb8
     if sim.setup.camera.mosaic is not None:
-        return _raw_frame_png(sim.render.image, sim.setup.camera.mosaic)
+        return _raw_frame_png(sim.render.image, sim.setup.camera)
     response = sim.setup.camera.response
     codes = linear_to_srgb8(sim.render.image) if response is None else response.encode8(sim.render.image)
     if sim.setup.camera.demosaiced:
@@ -93,11 +93,16 @@ def _png(sim: Simulation) -> bytes:
     return encode_png(codes)
 
 
-def _raw_frame_png(light, pattern: str) -> bytes:
-    """A 16-bit one-channel PNG's bytes: the raw Bayer frame (filter tile `pattern`) a sensor records of the render's
-    linear light, 0 none and 65535 full scale (each pixel its filter's channel, rounded)."""
-    from raytrace.chroma import bayer_mosaic
-    frame = np.round(np.clip(bayer_mosaic(np.asarray(light), pattern), 0.0, 1.0) * 65535.0).astype(np.uint16)
+def _raw_frame_png(light, camera) -> bytes:
+    """A 16-bit one-channel PNG's bytes: the raw Bayer frame (filter tile `camera.mosaic`) a sensor records of the
+    render's linear light, each pixel its filter's channel divided by its white balance gain, from the camera's black
+    level (no light) to its white level (full scale; 65535 by default), rounded."""
+    from raytrace.chroma import bayer_channels, bayer_mosaic
+    sample = bayer_mosaic(np.asarray(light), camera.mosaic)
+    if camera.white_balance is not None:
+        sample = sample / np.asarray(camera.white_balance)[bayer_channels(camera.mosaic, sample.shape)]
+    white = 65535.0 if camera.white_level is None else camera.white_level
+    frame = np.round(camera.black_level + np.clip(sample, 0.0, 1.0) * (white - camera.black_level)).astype(np.uint16)
     from PIL import Image
     buf = io.BytesIO()
     Image.fromarray(frame).save(buf, "PNG", compress_level=3)  # (mode I;16: 16-bit grey)

@@ -13,7 +13,8 @@ import numpy as np
 
 from .errors import DepthError
 
-__all__ = ["INTERPOLATION", "INTERPOLATIONS", "aligned_to_green", "DEMOSAIC", "DEMOSAICS", "from_raw_frame"]
+__all__ = ["INTERPOLATION", "INTERPOLATIONS", "aligned_to_green", "DEMOSAIC", "DEMOSAICS", "raw_light",
+           "from_raw_frame"]
 
 INTERPOLATION = "cubic-clamped"
 """How a channel is sampled between its pixels: OpenCV's bicubic (`cv2.INTER_CUBIC`), each sample clipped to the
@@ -205,29 +206,49 @@ def _two_colour(light: np.ndarray, pattern: str) -> np.ndarray:
     return linear_to_srgb(weight * np.moveaxis(x, 0, -1).astype(np.float64) + (1.0 - weight) * vng)
 
 
-def from_raw_frame(frame, pattern: str, demosaic: str = DEMOSAIC) -> np.ndarray:
-    """The sRGB image (H, W, 3) a raw Bayer `frame` makes: (H, W) uint8 or uint16, each pixel its colour filter's
-    sample of light (`pattern`: `raytrace.chroma.BAYER_PATTERNS`), linear, 0 none and the type's maximum full scale.
-    `demosaic` (`DEMOSAICS`): "VNG" gives uint8 codes, the others float64 in [0, 1]. Either is read as a demosaiced
-    camera's image (`reconstruct`'s `compressed`: red and blue interpolated over three pixels of four, as a JPEG
-    image's chroma is)."""
-    import cv2
-
-    from raytrace.chroma import BAYER_PATTERNS, demosaiced_mosaic
-    from raytrace.render import linear_to_srgb8
-    from raytrace.response import linear_to_srgb
+def raw_light(frame, pattern: str, black: float = 0.0, white: float | None = None, gains=None) -> np.ndarray:
+    """(H, W) float64 in [0, 1]: a raw Bayer frame's light, (value − `black`) / (`white` − `black`), each pixel times
+    its filter's channel's gain (`gains`: red, green, blue; a camera's white balance), clipped. `white` defaults to the
+    frame type's maximum (255, 65535)."""
+    from raytrace.chroma import BAYER_PATTERNS, bayer_channels
     raw = np.asarray(frame)
     if raw.ndim != 2 or raw.dtype not in (np.uint8, np.uint16):
         raise DepthError(f"frame: expected an (H, W) uint8 or uint16 raw Bayer frame, got {raw.dtype} {raw.shape}")
     if pattern not in BAYER_PATTERNS:
         raise DepthError(f"pattern: expected one of {', '.join(BAYER_PATTERNS)}, got {pattern!r}")
+    most = float(np.iinfo(raw.dtype).max)
+    white = most if white is None else float(white)
+    if not (0.0 <= black < white <= most):
+        raise DepthError(f"black, white: expected 0 <= black < white <= {most:.0f} (the frame's type's most), got "
+                         f"{black}, {white}")
+    light = (raw - float(black)) / (white - float(black))
+    if gains is not None:
+        gains = np.asarray(gains, dtype=np.float64)
+        if gains.shape != (3,) or not np.all(np.isfinite(gains) & (gains > 0)):
+            raise DepthError(f"gains: expected 3 positive numbers (red, green, blue), got {gains.tolist()}")
+        light *= gains[bayer_channels(pattern, raw.shape)]
+    return np.clip(light, 0.0, 1.0)
+
+
+def from_raw_frame(frame, pattern: str, demosaic: str = DEMOSAIC, black: float = 0.0, white: float | None = None,
+                   gains=None) -> np.ndarray:
+    """The sRGB image (H, W, 3) a raw Bayer `frame` makes: (H, W) uint8 or uint16, each pixel its colour filter's
+    sample of light (`pattern`: `raytrace.chroma.BAYER_PATTERNS`), linear: `raw_light` (0 none at `black`, full scale
+    at `white`, each channel times its gain). `demosaic` (`DEMOSAICS`): "VNG" gives uint8 codes, the others float64 in
+    [0, 1]. Either is read as a demosaiced camera's image (`reconstruct`'s `compressed`: red and blue interpolated over
+    three pixels of four, as a JPEG image's chroma is)."""
+    import cv2
+
+    from raytrace.chroma import demosaiced_mosaic
+    from raytrace.render import linear_to_srgb8
+    from raytrace.response import linear_to_srgb
     if demosaic not in DEMOSAICS:
         raise DepthError(f"demosaic: expected one of {', '.join(DEMOSAICS)}, got {demosaic!r}")
-    light = raw / float(np.iinfo(raw.dtype).max)
+    light = raw_light(frame, pattern, black, white, gains)
     if demosaic == "VNG":
         return demosaiced_mosaic(linear_to_srgb8(light), pattern)
     if demosaic == "two-colour":
         return _two_colour(light, pattern)
     code = getattr(cv2, f"COLOR_Bayer{pattern}2RGB" + ("_EA" if demosaic == "edge-aware" else ""))
-    return linear_to_srgb(np.clip(cv2.cvtColor(np.ascontiguousarray(raw), code) / float(np.iinfo(raw.dtype).max),
-                                  0.0, 1.0))
+    values = np.round(light * 65535.0).astype(np.uint16)  # (OpenCV's take integers; a 16-bit frame's own, unscaled)
+    return linear_to_srgb(np.clip(cv2.cvtColor(np.ascontiguousarray(values), code) / 65535.0, 0.0, 1.0))

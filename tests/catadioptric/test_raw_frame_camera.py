@@ -10,7 +10,7 @@ import pytest
 from catadioptric.cli import main
 from catadioptric.setup import load_setup
 from raytrace.chroma import bayer_mosaic
-from cli_errors import one_line_error
+from cli_errors import one_line_error as _bad
 
 
 SAME_M = 1e-6
@@ -24,7 +24,13 @@ def rendered(tmp_path_factory, demo_with_camera):
     demo_with_camera(folder, "raw.toml", lambda setup: {"mosaic": "GRBG"})
     assert main(["simulate", str(folder / "plain.toml"), "-o", str(folder / "plain.png"), "--spp", "4"]) == 0
     assert main(["simulate", str(folder / "raw.toml"), "-o", str(folder / "mirror.png"), "--spp", "4"]) == 0
+    demo_with_camera(folder, "levels.toml", lambda setup: {"mosaic": "GRBG", **LEVELS})
+    assert main(["simulate", str(folder / "levels.toml"), "-o", str(folder / "levels.png"), "--spp", "4"]) == 0
     return folder
+
+
+LEVELS = {"black_level": 64, "white_level": 4095, "white_balance": [2.0, 1.0, 1.6]}
+"""A 12-bit sensor's frames stored in 16 bits, with its black level and white balance."""
 
 
 def _srgb8(light):
@@ -71,6 +77,32 @@ def test_reconstruct_reads_the_frame_demosaiced_as_a_compressed_image(rendered):
     assert overlay.shape == image.shape  # drawn on the demosaiced frame
 
 
+def test_a_frame_s_levels_and_white_balance_are_written_and_read_back(rendered, tmp_path, capsys):
+    """`simulate` records each pixel's light over its gain between the black and white levels; `reconstruct` reads
+    that light back (each channel times its gain) and finds the demo's cubes as in the plain frame."""
+    from depth.chroma import raw_light
+    frame = cv2.imread(str(rendered / "levels.png"), cv2.IMREAD_UNCHANGED)
+    plain = cv2.imread(str(rendered / "mirror.png"), cv2.IMREAD_UNCHANGED) / 65535.0  # (the same render's light)
+    assert frame.dtype == np.uint16 and frame.min() >= 64 and frame.max() <= 4095
+    gains = np.asarray(LEVELS["white_balance"])
+    sample = plain / gains[np.tile([[1, 0], [2, 1]], (600, 800))]  # (GRBG's channels, written out)
+    apart = np.abs(frame - np.round(64 + sample * (4095 - 64)))  # (a code apart where the plain frame's own
+    assert apart.max() <= 1 and np.mean(apart == 0) > 0.9999   # rounding of the light crosses a half)
+    light = raw_light(frame, "GRBG", 64, 4095, gains)
+    assert np.abs(light - plain).max() <= 0.5 / (4095 - 64) * gains.max() + 1e-12
+    assert main(["reconstruct", str(rendered / "levels.png"), "-o", str(tmp_path / "levels.json")]) == 0
+    got = np.array([c["center"] for c in json.loads((tmp_path / "levels.json").read_text())["cubes"]])
+    truth = np.array([c["center"] for c in json.loads((rendered / "levels.truth.json").read_text())["cubes"]])
+    nearest = np.argmin(np.linalg.norm(got[:, None] - truth[None], axis=2), axis=1)
+    assert len(got) == 5 and sorted(nearest) == list(range(5))
+    cv2.imwrite(str(tmp_path / "eight.png"), (frame >> 4).astype(np.uint8))
+    capsys.readouterr()
+    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "eight.png"), "--setup",
+                            str(rendered / "levels.toml"), "-o", str(tmp_path / "o.json")],
+         f"eight.png: an 8-bit frame's values reach 255, under {rendered / 'levels.toml'}: "
+         "camera.white_level 4095")
+
+
 def test_reconstruct_takes_another_demosaic_and_refuses_one_for_an_rgb_camera(rendered, capsys, tmp_path):
     from depth.chroma import from_raw_frame
     from depth.reconstruct import reconstruct
@@ -85,11 +117,11 @@ def test_reconstruct_takes_another_demosaic_and_refuses_one_for_an_rgb_camera(re
     np.testing.assert_allclose([c["center"] for c in result["cubes"]], [c.to_dict()["center"] for c in want],
                                rtol=0, atol=SAME_M)
     capsys.readouterr()
-    one_line_error(capsys, tmp_path, ["reconstruct", str(rendered / "plain.png"), "-o", str(tmp_path / "o.json"),
+    _bad(capsys, tmp_path, ["reconstruct", str(rendered / "plain.png"), "-o", str(tmp_path / "o.json"),
                             "--demosaic", "VNG"],
          f"--demosaic: {rendered / 'plain.toml'} has no [camera] mosaic: its camera's images are RGB, not raw Bayer "
          "frames")
-    one_line_error(capsys, tmp_path, ["reconstruct", str(rendered / "mirror.png"), "-o", str(tmp_path / "o.json"),
+    _bad(capsys, tmp_path, ["reconstruct", str(rendered / "mirror.png"), "-o", str(tmp_path / "o.json"),
                             "--demosaic", "AHD"],
          "--demosaic: expected one of VNG, bilinear, edge-aware, two-colour, got 'AHD'")
 
@@ -111,7 +143,7 @@ def test_report_draws_on_the_frame_demosaiced_as_the_result_says(rendered, tmp_p
     result["demosaic"] = "AHD"
     (rendered / "ahd.json").write_text(json.dumps(result))
     capsys.readouterr()
-    one_line_error(capsys, tmp_path, ["report", str(rendered / "ahd.json"), "-o", str(tmp_path / "ahd")],
+    _bad(capsys, tmp_path, ["report", str(rendered / "ahd.json"), "-o", str(tmp_path / "ahd")],
          "ahd.json: demosaic: expected one of VNG, bilinear, edge-aware, two-colour, got 'AHD'")
 
 
@@ -120,19 +152,19 @@ def test_frames_a_raw_frame_camera_cannot_read_get_one_line(rendered, tmp_path, 
     out = ["-o", str(tmp_path / "o.json")]
     frame = cv2.imread(str(rendered / "mirror.png"), cv2.IMREAD_UNCHANGED)
     key = f"({setup}: camera.mosaic GRBG)"
-    one_line_error(capsys, tmp_path, ["reconstruct", str(rendered / "plain.png"), "--setup", setup, *out],
+    _bad(capsys, tmp_path, ["reconstruct", str(rendered / "plain.png"), "--setup", setup, *out],
          f"plain.png: expected a one-channel raw Bayer frame {key}, got an image of 3 channels")
     cv2.imwrite(str(tmp_path / "float.tiff"), (frame / 65535.0).astype(np.float32))
-    one_line_error(capsys, tmp_path, ["reconstruct", str(tmp_path / "float.tiff"), "--setup", setup, *out],
+    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "float.tiff"), "--setup", setup, *out],
          f"float.tiff: expected an 8- or 16-bit raw Bayer frame {key}, got 32-bit floats")
     cv2.imwrite(str(tmp_path / "frame.jpg"), (frame >> 8).astype(np.uint8))
-    one_line_error(capsys, tmp_path, ["reconstruct", str(tmp_path / "frame.jpg"), "--setup", setup, *out],
+    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "frame.jpg"), "--setup", setup, *out],
          f"frame.jpg: expected a raw Bayer frame stored losslessly, PNG or TIFF {key}, got a JPEG file")
     cv2.imwrite(str(tmp_path / "small.png"), frame[:100, :120])
-    one_line_error(capsys, tmp_path, ["reconstruct", str(tmp_path / "small.png"), "--setup", setup, *out],
+    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "small.png"), "--setup", setup, *out],
          "small.png: expected 1600×1200 pixels")
     # and a frame read without the key: the error says what it lacks
     cv2.imwrite(str(tmp_path / "frame.png"), frame)
-    one_line_error(capsys, tmp_path, ["reconstruct", str(tmp_path / "frame.png"), "--setup", str(rendered / "plain.toml"), *out],
+    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "frame.png"), "--setup", str(rendered / "plain.toml"), *out],
          "frame.png: expected an RGB colour image, got a grayscale image (a camera's raw Bayer frame? its setup says "
          "so: [camera] mosaic)")

@@ -8,7 +8,7 @@ import pytest
 
 from catadioptric.cli import main
 from depth.estimate import EDGE_MISFIT_WARN_PX
-from cli_errors import one_line_error
+from cli_errors import one_line_error as _bad
 
 CONTRACT_KEYS = {"center", "size", "depth", "front_face_center", "front_face_corners_px", "aspect_ratio",
                  "method", "uncertainty"}
@@ -161,7 +161,7 @@ def test_a_bad_uncertainty_table_is_one_line_and_writes_nothing(scene, capsys, t
     setup["uncertainty"] = {"mirror_radius": -0.0002}
     bad = tmp_path / "bad.toml"
     bad.write_text(tomli_w.dumps(setup))
-    one_line_error(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--setup", str(bad), "-o",
+    _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--setup", str(bad), "-o",
                             str(tmp_path / "o.json")], "bad.toml: uncertainty.mirror_radius: expected a σ >= 0")
 
 
@@ -374,22 +374,22 @@ def test_bad_inputs_exit_1_with_one_line_and_write_nothing(scene, capsys, tmp_pa
     img = cv2.imread(str(scene / "mirror.png"))
     setup = scene / "mirror.toml"
     out = str(tmp_path / "o.json")
-    one_line_error(capsys, tmp_path, ["reconstruct", str(tmp_path / "nope.png"), "--setup", str(setup), "-o", out],
+    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "nope.png"), "--setup", str(setup), "-o", out],
          "nope.png: no such image file")
     cv2.imwrite(str(tmp_path / "small.png"), img[:100, :100])
-    one_line_error(capsys, tmp_path, ["reconstruct", str(tmp_path / "small.png"), "--setup", str(setup), "-o", out],
+    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "small.png"), "--setup", str(setup), "-o", out],
          "expected 640×480 pixels")
     cv2.imwrite(str(tmp_path / "gray.png"), cv2.cvtColor(img, cv2.COLOR_BGR2GRAY))
-    one_line_error(capsys, tmp_path, ["reconstruct", str(tmp_path / "gray.png"), "--setup", str(setup), "-o", out],
+    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "gray.png"), "--setup", str(setup), "-o", out],
          "grayscale")
     cv2.imwrite(str(tmp_path / "deep.png"), img.astype(np.uint16) * 257)
-    one_line_error(capsys, tmp_path, ["reconstruct", str(tmp_path / "deep.png"), "--setup", str(setup), "-o", out],
+    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "deep.png"), "--setup", str(setup), "-o", out],
          "expected an 8-bit image, got 16-bit")
     cv2.imwrite(str(tmp_path / "blank.png"), np.full_like(img, 128))
-    one_line_error(capsys, tmp_path, ["reconstruct", str(tmp_path / "blank.png"), "--setup", str(setup), "-o", out],
+    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "blank.png"), "--setup", str(setup), "-o", out],
          "no mirror content")
     (tmp_path / "junk.png").write_bytes(b"not an image")
-    one_line_error(capsys, tmp_path, ["reconstruct", str(tmp_path / "junk.png"), "--setup", str(setup), "-o", out],
+    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "junk.png"), "--setup", str(setup), "-o", out],
          "cannot read the image")
     import tomllib
 
@@ -398,24 +398,24 @@ def test_bad_inputs_exit_1_with_one_line_and_write_nothing(scene, capsys, tmp_pa
     del d["mirror"]
     nomirror = tmp_path / "nomirror.toml"
     nomirror.write_text(tomli_w.dumps(d))
-    one_line_error(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--setup", str(nomirror), "-o", out],
+    _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--setup", str(nomirror), "-o", out],
          "mirror: missing table [mirror]")
-    one_line_error(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--method", "magic", "-o", out],
+    _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--method", "magic", "-o", out],
          "--method: expected one of")
     # the arguments are checked before the image's own errors (it is read beside the first imports)
-    one_line_error(capsys, tmp_path, ["reconstruct", str(tmp_path / "junk.png"), "--method", "magic", "-o", out],
+    _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "junk.png"), "--method", "magic", "-o", out],
          "--method: expected one of")
-    one_line_error(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--cube-size", "-1", "-o", out],
+    _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--cube-size", "-1", "-o", out],
          "--cube-size: expected a positive edge length")
-    one_line_error(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--cube-size", "0.04", "--method",
+    _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--cube-size", "0.04", "--method",
                             "exact_shape_prior", "-o", out], "--cube-size: exact_shape_prior estimates the cubes'")
-    one_line_error(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--cube-size-std", "0.0002", "-o", out],
+    _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--cube-size-std", "0.0002", "-o", out],
          "--cube-size-std: the σ of a known --cube-size, carried through the exact estimator's fit: give "
          "--cube-size and --method exact")
-    one_line_error(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--cube-size", "0.04", "--cube-size-std",
+    _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--cube-size", "0.04", "--cube-size-std",
                             "0.0002", "--method", "ddar", "-o", out], "give --cube-size and --method exact, not ddar")
     for sd in ("-0.001", "nan"):
-        one_line_error(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--cube-size", "0.04", "--cube-size-std",
+        _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--cube-size", "0.04", "--cube-size-std",
                                 sd, "-o", out], "--cube-size-std: expected the σ of the edge length in metres, >= 0")
     for argv, message in (
             (["--on-floor", "--floor-height", "-0.2"], "--on-floor, --floor-height: give one"),
@@ -424,10 +424,10 @@ def test_bad_inputs_exit_1_with_one_line_and_write_nothing(scene, capsys, tmp_pa
             (["--on-floor", "--floor-std", "-0.001"], "--floor-std: expected the σ of the floor's height in metres"),
             (["--on-floor", "--method", "ddar"], "--on-floor: cubes standing on a floor are fitted by --method exact"),
             (["--floor-height", "-0.2", "--cube-size", "0.04"], "--floor-height: the floor fixes each cube's size")):
-        one_line_error(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), *argv, "-o", out], message)
-    one_line_error(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--blur-domain", "gamma", "-o", out],
+        _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), *argv, "-o", out], message)
+    _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--blur-domain", "gamma", "-o", out],
          "--blur-domain: expected one of auto, encoded, linear")
-    one_line_error(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--workers", "0", "-o", out],
+    _bad(capsys, tmp_path, ["reconstruct", str(scene / "mirror.png"), "--workers", "0", "-o", out],
          "--workers: expected an integer >= 1, got 0")
 
 

@@ -110,6 +110,39 @@ def test_a_raw_frame_camera_s_mosaic_is_optional_any_case_and_round_trips(valid_
     assert load_setup(p) == s and 'mosaic = "GBRG"' in p.read_text()
 
 
+def test_a_raw_frame_s_levels_and_gains_are_optional_and_round_trip(valid_setup, write_setup, tmp_path):
+    valid_setup["camera"].update(mosaic="RGGB")
+    plain = load_setup(write_setup(valid_setup)).camera
+    assert (plain.black_level, plain.white_level, plain.white_balance) == (0.0, None, None)
+    assert "level" not in setup_to_toml(load_setup(write_setup(valid_setup)))
+    valid_setup["camera"].update(black_level=64, white_level=4095, white_balance=[2.1, 1, 1.6])
+    s = load_setup(write_setup(valid_setup))
+    assert (s.camera.black_level, s.camera.white_level, s.camera.white_balance) == (64.0, 4095.0, (2.1, 1.0, 1.6))
+    p = tmp_path / "again.toml"
+    save_setup(s, p)
+    assert load_setup(p) == s
+
+
+RAW_BAD = [
+    ({"black_level": 64}, "camera.black_level: expected no raw frame's level or gains without camera.mosaic"),
+    ({"mosaic": "RGGB", "black_level": -1}, "camera.black_level: expected a number in \\[0.0, 65535.0\\], got -1"),
+    ({"mosaic": "RGGB", "white_level": 70000}, "camera.white_level: expected a number in \\[0.0, 65535.0\\]"),
+    ({"mosaic": "RGGB", "black_level": 512, "white_level": 256},
+     "camera.white_level: expected a value above camera.black_level \\(512\\), got 256"),
+    ({"mosaic": "RGGB", "white_balance": [2.0, 0.0, 1.5]},
+     "camera.white_balance: expected a list of 3 positive numbers"),
+    ({"mosaic": "RGGB", "white_balance": [2.0, 1.5]}, "camera.white_balance: expected a list of 3 finite numbers"),
+]
+
+
+@pytest.mark.parametrize("keys, message", RAW_BAD, ids=[str(k) for k, _ in RAW_BAD])
+def test_bad_raw_frame_levels_and_gains_are_one_line_errors(valid_setup, write_setup, keys, message):
+    valid_setup["camera"].update(keys)
+    path = write_setup(valid_setup, "bad.toml")
+    with pytest.raises(SetupError, match=f"^{path}: {message}"):
+        load_setup(path)
+
+
 @pytest.mark.parametrize("other, value, why", [("response", "linear", "a raw frame's values are light, linear"),
                                                ("demosaiced", True, "a raw frame is demosaiced by reconstruct")])
 def test_a_raw_frame_camera_takes_no_response_nor_demosaiced_key(valid_setup, write_setup, other, value, why):

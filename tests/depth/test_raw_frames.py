@@ -132,6 +132,32 @@ def test_bilinear_places_green_s_step_and_red_and_blue_s_within_half_a_pixel():
     assert 0.3 < np.abs(off[:, [0, 2]]).max() <= 0.5 + 1e-3
 
 
+def test_a_frame_s_light_runs_from_its_black_level_to_its_white_level_times_each_channel_s_gain():
+    from depth.chroma import raw_light
+    frame = np.array([[64, 2080], [4095, 5000]], np.uint16)  # R G / G B of an RGGB tile
+    got = raw_light(frame, "RGGB", black=64, white=4095, gains=(2.0, 1.0, 0.5))
+    want = np.empty((2, 2))
+    want[0, 0] = 0.0  # red at black, whatever its gain
+    want[0, 1] = (2080 - 64) / (4095 - 64) * 1.0  # green, half scale
+    want[1, 0] = 1.0  # green at white
+    want[1, 1] = min((5000 - 64) / (4095 - 64) * 0.5, 1.0)  # blue above white: its gain, then clipped
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(raw_light(np.array([[32]], np.uint16), "RGGB", black=64), 0.0)  # below black: none
+    red = raw_light(np.array([[1000]], np.uint16), "RGGB", white=4000.0, gains=(3.0, 1.0, 1.0))
+    np.testing.assert_allclose(red, 0.75, rtol=0, atol=1e-15)
+    flat = _flat_frame((0.25, 0.5, 0.125), "GBRG")
+    image = from_raw_frame(flat, "GBRG", "bilinear", gains=(2.0, 1.0, 4.0))[4:-4, 4:-4]
+    np.testing.assert_allclose(image, np.broadcast_to(_srgb([0.5, 0.5, 0.5]), image.shape), rtol=0, atol=2e-5)
+    with pytest.raises(DepthError, match=r"^black, white: expected 0 <= black < white <= 255 \(the frame's type's "
+                                         r"most\), got 4096.0, 255.0$"):
+        raw_light(np.zeros((2, 2), np.uint8), "RGGB", black=4096.0)
+    with pytest.raises(DepthError, match=r"^black, white: expected .* got 0.0, 70000.0$"):
+        raw_light(np.zeros((2, 2), np.uint16), "RGGB", white=70000.0)
+    with pytest.raises(DepthError, match=r"^gains: expected 3 positive numbers \(red, green, blue\), got \[1.0, 0.0, "
+                                         r"1.0\]$"):
+        raw_light(np.zeros((2, 2), np.uint16), "RGGB", gains=(1.0, 0.0, 1.0))
+
+
 def test_frames_and_arguments_it_cannot_read_are_refused():
     frame = np.zeros((8, 8), np.uint16)
     with pytest.raises(DepthError, match=r"^frame: expected an \(H, W\) uint8 or uint16 raw Bayer frame, got uint16 "
