@@ -158,6 +158,48 @@ def test_a_frame_s_light_runs_from_its_black_level_to_its_white_level_times_each
         raw_light(np.zeros((2, 2), np.uint16), "RGGB", gains=(1.0, 0.0, 1.0))
 
 
+def test_two_colour_is_the_same_in_strips_on_several_cores(monkeypatch):
+    """Its passes run on the blocks that are not flat, in strips of rows read as far beyond them as the passes
+    reach, one per core: the same image on 1 core and on 3. Beyond their reach of any edge, the frame's light."""
+    import depth.workers
+    from raytrace.chroma import bayer_mosaic
+    rng = np.random.default_rng(7)
+    light = np.full((400, 200, 3), 0.3)
+    for _ in range(12):  # rectangles of colour, edges at fractions of a pixel
+        y, x = rng.uniform(0, 360), rng.uniform(0, 120)
+        rows, cols = np.arange(400)[:, None] + 0.5, np.arange(200)[None, :] + 0.5
+        cover = np.clip(np.minimum(rows - y, y + 30 - rows) + 0.5, 0, 1) * np.clip(np.minimum(cols - x, x + 25 - cols)
+                                                                                 + 0.5, 0, 1)
+        light = light + cover[..., None] * (rng.uniform(0.05, 0.9, 3) - light)
+    light[:, 128:] = 0.3  # (a flat band)
+    frame = np.round(bayer_mosaic(light, "GRBG") * 65535).astype(np.uint16)
+    got = {}
+    for cores in (1, 3):
+        monkeypatch.setattr(depth.workers, "available_cores", lambda c=cores: c)
+        got[cores] = from_raw_frame(frame, "GRBG", "two-colour")
+    np.testing.assert_array_equal(got[1], got[3])
+    assert len(chroma_strips((0, 400, 0, 200), 3)) == 3
+    # beyond the passes' reach (30 px) of the band's edge, the light as it is
+    np.testing.assert_allclose(got[1][:, 160:], _srgb(np.round(0.3 * 65535) / 65535), rtol=0, atol=1e-7)
+
+
+def test_two_colour_runs_its_passes_on_the_blocks_about_what_is_not_flat_alone():
+    import depth.chroma as chroma
+    from raytrace.chroma import bayer_mosaic
+    light = np.full((512, 384, 3), 0.4)
+    light[10:50, 12:40] = (0.8, 0.3, 0.1)  # one face, within the first block
+    frame = np.round(bayer_mosaic(light, "RGGB") * 65535).astype(np.uint16)
+    start = chroma._bilinear((frame / 65535.0).astype(np.float32), chroma._tile("RGGB"))
+    assert chroma._busy_boxes(start) == [(0, 128, 0, 128)]  # its block and the one about it
+    got = from_raw_frame(frame, "RGGB", "two-colour")
+    np.testing.assert_allclose(got[128:, 128:], _srgb(np.round(0.4 * 65535) / 65535), rtol=0, atol=1e-7)
+
+
+def chroma_strips(box, n):
+    from depth.chroma import _strips
+    return _strips(box, n, 400)
+
+
 def test_frames_and_arguments_it_cannot_read_are_refused():
     frame = np.zeros((8, 8), np.uint16)
     with pytest.raises(DepthError, match=r"^frame: expected an \(H, W\) uint8 or uint16 raw Bayer frame, got uint16 "
