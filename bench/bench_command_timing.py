@@ -7,8 +7,10 @@ the ray map, the JSON written) on the reconstruct bench's five clean 2048×1536 
 of REV, the two alternated image by image and round by round (the order reversed every other round), so that
 their ratio comes from one run. It also says whether both revisions write the same cubes and refusals.
 
-Run: ``python -m bench command_timing [--against=REV] [--rounds=N]`` (the ``=`` is needed, as for
-``floor_timing``). The renders come from bench/out/renders (made by our renderer when missing).
+Run: ``python -m bench command_timing [--against=REV] [--rounds=N] [--raw [--demosaic=D]]`` (the ``=`` is needed,
+as for ``floor_timing``). The renders come from bench/out/renders (made by our renderer when missing). ``--raw``
+times the same images as raw Bayer frames (`[camera] mosaic`; the command's ``--demosaic D``), which a revision
+before the ninety-fourth session's cannot read.
 
 ``--instructions`` counts instead of timing: each image's command once per revision under Valgrind's
 callgrind (every process it forks followed), the user-space instructions of all its processes summed, and
@@ -43,28 +45,37 @@ TARGET_SECONDS = 2.0
 _CONSOLE = "from catadioptric.cli import console; console()"  # the console script's entry point
 
 
-def _images(where: Path, quick: bool = False) -> list[Path]:
+def _images(where: Path, quick: bool = False, raw: bool = False) -> list[Path]:
     """The reconstruct bench's clean 2048×1536 images of our renderer (of its quick cases with `quick`), each
-    written under `where` as PNG beside its setup."""
+    written under `where` as PNG beside its setup; with `raw`, as the raw Bayer frame of each (RGGB, 16 bits, the
+    light of each pixel's own channel) beside its setup with `[camera] mosaic`."""
+    import dataclasses
+
     from bench.bench_reconstruct import cases, our_render
     from catadioptric.setup import save_setup
+    from raytrace.chroma import bayer_mosaic
+    from raytrace.response import srgb_to_linear
 
     out = []
     for renderer, sc in cases(quick):
         if renderer == "ours" and sc.setup.camera.resolution[0] == 2048:
-            png = where / f"{sc.name}.png"
-            cv2.imwrite(str(png), cv2.cvtColor(our_render(sc.setup), cv2.COLOR_RGB2BGR))
-            save_setup(sc.setup, png.with_suffix(".toml"))
+            png, setup, img = where / f"{sc.name}.png", sc.setup, our_render(sc.setup)
+            if raw:
+                cv2.imwrite(str(png), np.round(bayer_mosaic(srgb_to_linear(img / 255.0)) * 65535).astype(np.uint16))
+                setup = dataclasses.replace(setup, camera=dataclasses.replace(setup.camera, mosaic="RGGB"))
+            else:
+                cv2.imwrite(str(png), cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
+            save_setup(setup, png.with_suffix(".toml"))
             out.append(png)
     return out
 
 
-def _run(root: Path, png: Path, out: Path) -> float:
-    """Wall time of one fresh `catadioptric reconstruct` whose packages are those under `root` (its working
-    directory, first on the path of `python -c`)."""
+def _run(root: Path, png: Path, out: Path, extra: tuple = ()) -> float:
+    """Wall time of one fresh `catadioptric reconstruct` (with `extra` arguments) whose packages are those under
+    `root` (its working directory, first on the path of `python -c`)."""
     t0 = time.perf_counter()
-    done = subprocess.run([sys.executable, "-c", _CONSOLE, "reconstruct", str(png), "-o", str(out)], cwd=root,
-                          capture_output=True, text=True, check=False)
+    done = subprocess.run([sys.executable, "-c", _CONSOLE, "reconstruct", str(png), "-o", str(out), *extra],
+                          cwd=root, capture_output=True, text=True, check=False)
     seconds = time.perf_counter() - t0
     if done.returncode != 0:
         tail = done.stderr.strip().splitlines()[-1:] or ["(no message)"]
@@ -134,9 +145,12 @@ def main() -> int:
     rounds = int(_flag("rounds", "3"))
     if rounds < 1:
         raise SystemExit(f"bench command_timing: --rounds: expected an integer >= 1, got {rounds}")
+    raw = "--raw" in sys.argv[1:]
+    demosaic = _flag("demosaic", None)
+    extra = ("--demosaic", demosaic) if demosaic else ()
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        images = _images(tmp)
+        images = _images(tmp, raw=raw)
         compiled(ROOT)
         base = _worktree(against, tmp, bench="command_timing") if against else None
         roots = {"here": ROOT} | ({"base": base} if base is not None else {})
@@ -154,7 +168,7 @@ def main() -> int:
                 for png in images:
                     for name in (list(roots) if k % 2 == 0 else list(roots)[::-1]):
                         out = tmp / f"{png.stem}.{name}.json"
-                        seconds[name][png.stem].append(_run(roots[name], png, out))
+                        seconds[name][png.stem].append(_run(roots[name], png, out, extra))
                         results[name].setdefault(png.stem, set()).add(_result(out))
                 print(f"  round {k + 1}/{rounds}: " + "; ".join(
                     f"{png.stem} " + " / ".join(f"{name} {seconds[name][png.stem][-1]:.2f}" for name in roots)
@@ -163,8 +177,9 @@ def main() -> int:
             if base is not None:
                 subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(base)],
                                capture_output=True, check=False)
+    what = ("raw Bayer frames (RGGB, 16 bits" + (f", --demosaic {demosaic})" if demosaic else ")")) if raw else "images"
     print(f"\n`catadioptric reconstruct IMAGE.png -o OUT.json`, fresh processes, {len(images)} clean 2048x1536 "
-          f"images, {rounds} round(s)" + (f"; base = {against}" if against else ""))
+          f"{what}, {rounds} round(s)" + (f"; base = {against}" if against else ""))
     medians = {name: {stem: float(np.median(v)) for stem, v in per.items()} for name, per in seconds.items()}
     for png in images:
         line = f"  {png.stem}: here median {medians['here'][png.stem]:.2f} s"

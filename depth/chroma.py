@@ -93,7 +93,7 @@ DEMOSAIC = "two-colour"
 """How `from_raw_frame` fills each pixel's two channels its filter did not record (see `DEMOSAICS`). On `bench_bayer`'s
 raw frames it finds as many cubes as VNG or more (Mitsuba's 57 of 61 each, ours 23 of 23 against 20; the demo scene
 5 of 5 against 3 and one invented), its centre error median 0.81 % on Mitsuba's (VNG 1.14 %; cube by cube a draw, 29
-better and 27 worse), for 0.44 s per megapixel more (`python -m bench bayer`)."""
+better and 27 worse), for 0.26 s per megapixel more (`python -m bench bayer`)."""
 DEMOSAICS = ("VNG", "bilinear", "edge-aware", "two-colour")
 """`from_raw_frame`'s demosaics: "VNG", OpenCV's variable number of gradients on the frame's light stored as sRGB codes
 (its VNG takes 8 bits alone); "bilinear" and "edge-aware", OpenCV's on the frame's own (linear) values; "two-colour"
