@@ -461,7 +461,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--workers", type=int, default=None, metavar="N",
                    help="processes the faces are measured in (default: every core; the result is the same)")
     r.add_argument("--demosaic", default=None, metavar="D",
-                   help="how a raw Bayer frame ([camera] mosaic) is made an image: VNG (default), two-colour, "
+                   help="how a raw Bayer frame ([camera] mosaic) is made an image: two-colour (default), VNG, "
                         "bilinear or edge-aware")
     r.set_defaults(func=_cmd_reconstruct, without_cycle_collector=True)
 

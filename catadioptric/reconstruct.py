@@ -71,7 +71,8 @@ def camera_image(path, setup, setup_path, demosaic: str | None = None) -> np.nda
     """The image file at `path` as `reconstruct` reads it for `setup`'s camera: an 8-bit RGB image as (H, W, 3)
     uint8, or where `[camera] mosaic` says the camera's images are raw Bayer frames, the frame checked and
     demosaiced (`depth.chroma.from_raw_frame`, by `demosaic`: default `depth.chroma.DEMOSAIC`) as 8-bit codes to draw
-    on (`reconstruct` reads its values unrounded); one-line errors naming the file for anything else."""
+    on (`reconstruct` reads its values unrounded); checked to be of the setup's camera.resolution; one-line errors
+    naming the file for anything else."""
     path = Path(path)
     return as_codes(_camera_image(decode_image_file(path), path, setup, setup_path, demosaic))
 
@@ -96,7 +97,7 @@ def _camera_image(decoded, path, setup, setup_path, demosaic=None) -> np.ndarray
     """`camera_image` of the file's decoded values (`decode_image_file`'s)."""
     pattern = setup.camera.mosaic
     if pattern is None:
-        return _rgb_image(decoded, path)
+        return _sized(_rgb_image(decoded, path), path, setup, setup_path)
     key = f"{setup_path}: camera.mosaic {pattern}"
     if decoded.ndim == 3 and decoded.shape[2] != 1:
         raise CatadioptricError(f"{path}: expected a one-channel raw Bayer frame ({key}), got an image of "
@@ -108,11 +109,7 @@ def _camera_image(decoded, path, setup, setup_path, demosaic=None) -> np.ndarray
     if is_jpeg(path):
         raise CatadioptricError(f"{path}: expected a raw Bayer frame stored losslessly, PNG or TIFF ({key}), "
                                 "got a JPEG file")
-    frame = decoded.reshape(decoded.shape[:2])
-    w, h = setup.camera.resolution
-    if frame.shape != (h, w):
-        raise CatadioptricError(f"{path}: expected {w}×{h} pixels ({setup_path}: camera.resolution), "
-                                f"got {frame.shape[1]}×{frame.shape[0]}")
+    frame = _sized(decoded.reshape(decoded.shape[:2]), path, setup, setup_path)  # (before it is demosaiced)
     cam = setup.camera
     most = np.iinfo(frame.dtype).max
     if cam.black_level >= most or (cam.white_level or 0) > most:
@@ -123,6 +120,15 @@ def _camera_image(decoded, path, setup, setup_path, demosaic=None) -> np.ndarray
     from depth.chroma import from_raw_frame
     return from_raw_frame(frame, pattern, raw_demosaic(setup, demosaic), cam.black_level, cam.white_level,
                           cam.white_balance)
+
+
+def _sized(image, path, setup, setup_path) -> np.ndarray:
+    """The image, checked to be of the setup's camera.resolution (one-line error naming both files)."""
+    w, h = setup.camera.resolution
+    if image.shape[:2] != (h, w):
+        raise CatadioptricError(f"{path}: expected {w}×{h} pixels ({setup_path}: camera.resolution), "
+                                f"got {image.shape[1]}×{image.shape[0]}")
+    return image
 
 
 def _rgb_image(img, path) -> np.ndarray:
@@ -216,10 +222,6 @@ def _run_reconstruction(image_path, setup_path, method, cube_size, progress, blu
         raise CatadioptricError(f"--demosaic: {setup_path} has no [camera] mosaic: its camera's images are RGB, not "
                                 "raw Bayer frames")
     image = _camera_image(decoded, Path(image_path), setup, setup_path, demosaic)
-    w, h = setup.camera.resolution
-    if image.shape[:2] != (h, w):
-        raise CatadioptricError(f"{image_path}: expected {w}×{h} pixels ({setup_path}: camera.resolution), "
-                                f"got {image.shape[1]}×{image.shape[0]}")
     from depth.errors import DepthError
     if on_floor:
         floor_height = -setup.mirror.height / 2.0

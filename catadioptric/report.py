@@ -108,11 +108,7 @@ def load_input(input_path, setup_path=None, method=None, progress=None) -> Repor
         if isinstance(img_name, str) and img_name:
             img_path = path.parent / img_name
             if img_path.is_file():
-                image = rc.camera_image(img_path, setup, setup_path, _demosaic_of(result, path))
-                w, h = setup.camera.resolution
-                if image.shape[:2] != (h, w):
-                    raise CatadioptricError(f"{img_path}: expected {w}×{h} pixels ({setup_path}: camera.resolution), "
-                                            f"got {image.shape[1]}×{image.shape[0]}")
+                image = rc.camera_image(img_path, setup, setup_path, _demosaic_of(result, path))  # (its size checked)
                 truth = truth_beside(img_path)
             else:
                 notes.append(f"The image {img_name} is not beside the result: no annotated image.")

@@ -120,8 +120,9 @@ _PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
 
 
 def _tile(pattern: str) -> list:
-    """The channel (0, 1, 2) of each pixel of a pattern's 2 × 2 tile, [row][column]."""
-    return [["RGB".index(pattern[2 * i + j]) for j in range(2)] for i in range(2)]
+    """The channel (0, 1, 2) of each pixel of a pattern's 2 × 2 tile, [row][column] (`bayer_channels`'s)."""
+    from raytrace.chroma import bayer_channels
+    return bayer_channels(pattern, (2, 2)).tolist()
 
 
 def _box(a: np.ndarray) -> np.ndarray:

@@ -53,16 +53,23 @@ def test_simulate_writes_the_frame_of_the_render_s_light_each_pixel_its_filter_s
     assert load_setup(rendered / "mirror.toml").camera.mosaic == "GRBG"
 
 
-def test_reconstruct_reads_the_frame_demosaiced_as_a_compressed_image(rendered):
+@pytest.fixture(scope="module")
+def read(rendered):
+    """The command's reading of the frame: rendered/raw.json and raw.overlay.png (made in each test process: the tests
+    that read them may run in any)."""
+    assert main(["reconstruct", str(rendered / "mirror.png"), "-o", str(rendered / "raw.json"),
+                 "--overlay", str(rendered / "raw.overlay.png")]) == 0
+    return rendered / "raw.json"
+
+
+def test_reconstruct_reads_the_frame_demosaiced_as_a_compressed_image(rendered, read):
     """The command's result is the library's reading of the frame demosaiced (two-colour by default, as the result
     says) as compressed; and every cube of the demo is found, none invented, about where it is."""
     from depth.chroma import from_raw_frame
     from depth.reconstruct import reconstruct
     setup = load_setup(rendered / "mirror.toml")
     frame = cv2.imread(str(rendered / "mirror.png"), cv2.IMREAD_UNCHANGED)
-    assert main(["reconstruct", str(rendered / "mirror.png"), "-o", str(rendered / "raw.json"),
-                 "--overlay", str(rendered / "raw.overlay.png")]) == 0
-    result = json.loads((rendered / "raw.json").read_text())
+    result = json.loads(read.read_text())
     assert result["demosaic"] == "two-colour"
     got = np.array([c["center"] for c in result["cubes"]])
     image = from_raw_frame(frame, "GRBG", "two-colour")
@@ -126,12 +133,12 @@ def test_reconstruct_takes_another_demosaic_and_refuses_one_for_an_rgb_camera(re
          "--demosaic: expected one of VNG, bilinear, edge-aware, two-colour, got 'AHD'")
 
 
-def test_report_draws_on_the_frame_demosaiced_as_the_result_says(rendered, tmp_path, capsys):
+def test_report_draws_on_the_frame_demosaiced_as_the_result_says(rendered, read, tmp_path, capsys):
     """Its annotated image is the frame demosaiced (in colour, where the frame itself is one channel) by the demosaic
     the result names; one it does not know is a one-line error."""
     from depth.chroma import from_raw_frame
     frame = cv2.imread(str(rendered / "mirror.png"), cv2.IMREAD_UNCHANGED)
-    result = json.loads((rendered / "raw.json").read_text())
+    result = json.loads(read.read_text())
     for demosaic in ("two-colour", "bilinear"):
         result["demosaic"] = demosaic
         (rendered / f"{demosaic}.json").write_text(json.dumps(result))
@@ -147,7 +154,7 @@ def test_report_draws_on_the_frame_demosaiced_as_the_result_says(rendered, tmp_p
          "ahd.json: demosaic: expected one of VNG, bilinear, edge-aware, two-colour, got 'AHD'")
 
 
-def test_frames_a_raw_frame_camera_cannot_read_get_one_line(rendered, tmp_path, capsys):
+def test_frames_a_raw_frame_camera_cannot_read_get_one_line(rendered, read, tmp_path, capsys):
     setup = str(rendered / "mirror.toml")
     out = ["-o", str(tmp_path / "o.json")]
     frame = cv2.imread(str(rendered / "mirror.png"), cv2.IMREAD_UNCHANGED)
@@ -163,6 +170,11 @@ def test_frames_a_raw_frame_camera_cannot_read_get_one_line(rendered, tmp_path, 
     cv2.imwrite(str(tmp_path / "small.png"), frame[:100, :120])
     _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "small.png"), "--setup", setup, *out],
          "small.png: expected 1600×1200 pixels")
+    # (a report of a result whose frame is of another size: the same line, before any demosaic)
+    result = json.loads(read.read_text())
+    (tmp_path / "small.json").write_text(json.dumps(dict(result, image="small.png", setup=setup)))
+    _bad(capsys, tmp_path, ["report", str(tmp_path / "small.json"), "-o", str(tmp_path / "rep")],
+         f"small.png: expected 1600×1200 pixels ({setup}: camera.resolution), got 120×100")
     # and a frame read without the key: the error says what it lacks
     cv2.imwrite(str(tmp_path / "frame.png"), frame)
     _bad(capsys, tmp_path, ["reconstruct", str(tmp_path / "frame.png"), "--setup", str(rendered / "plain.toml"), *out],
