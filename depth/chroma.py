@@ -125,9 +125,9 @@ def _tile(pattern: str) -> list:
     return bayer_channels(pattern, (2, 2)).tolist()
 
 
-def _box(a: np.ndarray) -> np.ndarray:
+def _box(a: np.ndarray, dst: np.ndarray | None = None) -> np.ndarray:
     import cv2
-    return cv2.boxFilter(a, -1, (TWO_COLOUR_WINDOW, TWO_COLOUR_WINDOW), normalize=True,
+    return cv2.boxFilter(a, -1, (TWO_COLOUR_WINDOW, TWO_COLOUR_WINDOW), dst=dst, normalize=True,
                          borderType=cv2.BORDER_REFLECT_101)
 
 
@@ -147,10 +147,24 @@ def _bilinear(light: np.ndarray, tile: list) -> np.ndarray:
     return out
 
 
-def _window_moments(x: np.ndarray):
-    """Each pixel's window means of the channels (3 of (H, W)) and of their products (`_PAIRS`: dict)."""
-    mean = [_box(x[c]) for c in range(3)]
-    return mean, {p: _box(x[p[0]] * x[p[1]]) for p in _PAIRS}
+def _window_moments(x: np.ndarray, into: tuple | None = None):
+    """Each pixel's window means of the channels (3 of (H, W)) and of their products (`_PAIRS`: dict); written into
+    `into` (`_moment_buffers`'s) where given, which a pass over a large image pays for once, not at every pass (each new
+    image-sized array's pages are faulted in afresh)."""
+    mean, prod, product = into if into is not None else _moment_buffers(x)
+    for c in range(3):
+        _box(x[c], mean[c])
+    for p in _PAIRS:
+        np.multiply(x[p[0]], x[p[1]], out=product)
+        _box(product, prod[p])
+    return mean, prod
+
+
+def _moment_buffers(x: np.ndarray) -> tuple:
+    """Arrays for `_window_moments` of `x` (3, H, W): 3 means, 6 products' means (`_PAIRS`) and one product."""
+    def new():
+        return np.empty(x.shape[1:], x.dtype)
+    return [new() for _ in range(3)], {p: new() for p in _PAIRS}, new()
 
 
 TWO_COLOUR_BLOCK = 64
@@ -190,26 +204,45 @@ def _two_colour_passes(light: np.ndarray, tile: list) -> np.ndarray:
     every channel's edge where the light's is (the red and blue samples of one row are 2 px apart: no interpolation of
     those alone places it better than ±0.5 px)."""
     x = _bilinear(light, tile)
+    buffers = _moment_buffers(x)
+    phases = []
+    for i in range(2):
+        for j in range(2):
+            at = (slice(i, None, 2), slice(j, None, 2))
+            phases.append((tile[i][j], at) + tuple(np.empty(light[at].shape, np.float32) for _ in range(2)))
     for _ in range(TWO_COLOUR_STEPS):
-        mean, prod = _window_moments(x)
-        for i in range(2):
-            for j in range(2):
-                c, at = tile[i][j], (slice(i, None, 2), slice(j, None, 2))
-                mc = mean[c][at]
-                slope_over = (light[at] - mc) / (prod[c, c][at] - mc * mc + 1e-7)
-                for k in {0, 1, 2} - {c}:
-                    on_line = mean[k][at] + (prod[min(k, c), max(k, c)][at] - mean[k][at] * mc) * slope_over
-                    xs = x[k][at]
-                    xs += TWO_COLOUR_RELAXATION * (on_line - xs)
-    return np.clip(x, 0.0, 1.0)
+        mean, prod = _window_moments(x, buffers)
+        for c, at, slope_over, step in phases:  # (in place, in this order: (sample − mean) / (variance + 1e-7), the
+            mc = mean[c][at]  # line's value at the sample, a pixel's channels moved that way; all float32)
+            np.subtract(light[at], mc, out=slope_over)
+            np.multiply(mc, mc, out=step)
+            np.subtract(prod[c, c][at], step, out=step)
+            step += 1e-7
+            slope_over /= step
+            for k in sorted({0, 1, 2} - {c}):
+                xs = x[k][at]
+                np.multiply(mean[k][at], mc, out=step)
+                np.subtract(prod[min(k, c), max(k, c)][at], step, out=step)
+                step *= slope_over
+                np.add(mean[k][at], step, out=step)
+                step -= xs
+                step *= TWO_COLOUR_RELAXATION
+                xs += step
+    return np.clip(x, 0.0, 1.0, out=x)
 
 
-def _off_line_share(x: np.ndarray) -> np.ndarray:
+def _off_line_share(x: np.ndarray, rows: slice = slice(None)) -> np.ndarray:
     """(H, W): the share of each window's colour variance (`x`: (3, H, W)) off its main axis, 1 − λ₁ / trace of its
     3 × 3 covariance (λ₁ its largest eigenvalue, in closed form: Smith, "Eigenvalues of a symmetric 3 × 3 matrix",
-    Comm. ACM 4, 1961); 0 where the window is flat (`TWO_COLOUR_FLAT`)."""
+    Comm. ACM 4, 1961); 0 where the window is flat (`TWO_COLOUR_FLAT`). Of the given `rows` alone (windows still read
+    from the whole of `x`), computed where they are not flat alone."""
     mean, prod = _window_moments(x)
-    c = {p: (prod[p] - mean[p[0]] * mean[p[1]]).astype(np.float64) for p in _PAIRS}
+    total = sum((prod[c, c][rows] - mean[c][rows] * mean[c][rows]).astype(np.float64) for c in range(3))
+    share = np.zeros(total.shape, np.float64)
+    busy = total >= TWO_COLOUR_FLAT
+    if not busy.any():
+        return share
+    c = {p: (prod[p][rows][busy] - mean[p[0]][rows][busy] * mean[p[1]][rows][busy]).astype(np.float64) for p in _PAIRS}
     total = c[0, 0] + c[1, 1] + c[2, 2]
     q = total / 3.0
     d0, d1, d2 = c[0, 0] - q, c[1, 1] - q, c[2, 2] - q
@@ -218,8 +251,8 @@ def _off_line_share(x: np.ndarray) -> np.ndarray:
     det = (d0 * (d1 * d2 - c[1, 2] ** 2) - c[0, 1] * (c[0, 1] * d2 - c[1, 2] * c[0, 2])
            + c[0, 2] * (c[0, 1] * c[1, 2] - d1 * c[0, 2]))
     largest = q + 2.0 * p * np.cos(np.arccos(np.clip(det / (2.0 * p ** 3), -1.0, 1.0)) / 3.0)
-    share = np.clip(1.0 - largest / np.maximum(total, 1e-12), 0.0, 1.0)
-    return np.where(total < TWO_COLOUR_FLAT, 0.0, share)
+    share[busy] = np.clip(1.0 - largest / np.maximum(total, 1e-12), 0.0, 1.0)
+    return share
 
 
 def _two_colour(light: np.ndarray, pattern: str) -> np.ndarray:
@@ -245,10 +278,10 @@ def _two_colour(light: np.ndarray, pattern: str) -> np.ndarray:
     def strip(job):  # rows top:bottom of a box, read from rows above and below it as far as the passes reach
         (top, bottom, left, right), (first, last) = job
         part = _two_colour_passes(light32[first:last, left:right], tile)
-        weight = np.clip((hi - _off_line_share(part)) / (hi - lo), 0.0, 1.0)[..., None]
-        inner = (slice(top - first, bottom - first), slice(None))
+        inner = slice(top - first, bottom - first)
+        weight = np.clip((hi - _off_line_share(part, inner)) / (hi - lo), 0.0, 1.0)[..., None]
         region = (slice(top, bottom), slice(left, right))
-        out[region] = weight[inner] * np.moveaxis(part, 0, -1)[inner] + (1.0 - weight[inner]) * table[vng[region]]
+        out[region] = weight * np.moveaxis(part, 0, -1)[inner] + (1.0 - weight) * table[vng[region]]
 
     from concurrent.futures import ThreadPoolExecutor
 
