@@ -43,7 +43,7 @@ def _demosaic(raw: np.ndarray, name: str) -> np.ndarray:
 def run(quick: bool = False, log=print) -> dict:
     from bench.bench_reconstruct import score, variant
     from bench.bench_response import images
-    from depth.reconstruct import reconstruct
+    from depth.reconstruct import reading_region, reconstruct
     from depth.chroma import from_raw_frame
     from raytrace.chroma import bayer_mosaic, demosaiced
     from raytrace.response import srgb_to_linear
@@ -64,7 +64,7 @@ def run(quick: bool = False, log=print) -> dict:
         assert np.array_equal(from_raw_frame(frame, "RGGB", "VNG"), made["VNG"])  # (its light's codes are the image's)
         for d in ("two-colour", "bilinear", "edge-aware"):
             t = time.perf_counter()
-            image = from_raw_frame(frame, "RGGB", d)
+            image = from_raw_frame(frame, "RGGB", d, where=reading_region(camera, mirror))  # (as the command does)
             seconds.setdefault(d, []).append((time.perf_counter() - t) / frame.size * 1e6)
             jobs.append((f"raw, {d}", image, True))
             if d == "two-colour":

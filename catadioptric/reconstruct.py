@@ -118,8 +118,9 @@ def _camera_image(decoded, path, setup, setup_path, demosaic=None) -> np.ndarray
         raise CatadioptricError(f"{path}: {'an' if bits == 8 else 'a'} {bits}-bit frame's values reach {most}, under "
                                 f"{setup_path}: camera.{level} {getattr(cam, level):g}")
     from depth.chroma import from_raw_frame
+    from depth.reconstruct import reading_region
     return from_raw_frame(frame, pattern, raw_demosaic(setup, demosaic), cam.black_level, cam.white_level,
-                          cam.white_balance)
+                          cam.white_balance, where=reading_region(cam.build(), setup.mirror.build()))
 
 
 def _sized(image, path, setup, setup_path) -> np.ndarray:

@@ -93,7 +93,7 @@ DEMOSAIC = "two-colour"
 """How `from_raw_frame` fills each pixel's two channels its filter did not record (see `DEMOSAICS`). On `bench_bayer`'s
 raw frames it finds as many cubes as VNG or more (Mitsuba's 57 of 61 each, ours 23 of 23 against 20; the demo scene
 5 of 5 against 3 and one invented), its centre error median 0.81 % on Mitsuba's (VNG 1.14 %; cube by cube a draw, 29
-better and 27 worse), for 0.26 s per megapixel more (`python -m bench bayer`)."""
+better and 27 worse), for 0.22 s per megapixel more (`python -m bench bayer`)."""
 DEMOSAICS = ("VNG", "bilinear", "edge-aware", "two-colour")
 """`from_raw_frame`'s demosaics: "VNG", OpenCV's variable number of gradients on the frame's light stored as sRGB codes
 (its VNG takes 8 bits alone); "bilinear" and "edge-aware", OpenCV's on the frame's own (linear) values; "two-colour"
@@ -169,9 +169,20 @@ def _moment_buffers(x: np.ndarray) -> tuple:
 
 TWO_COLOUR_BLOCK = 64
 """Side (px, even) of the blocks `_two_colour` runs its passes on: those holding a window that is not flat
-(`TWO_COLOUR_FLAT`), with the blocks around them (the passes reach 3 px a pass, 30 px in all); elsewhere the bilinear
-start is kept, which is exact where the light is flat. Most of a mirror image is: on the command timing's five
-2048 × 1536 frames, 0.5–28 % of the pixels have a window that is not."""
+(`TWO_COLOUR_FLAT`), with the blocks around them; elsewhere the bilinear start is kept, which is exact where the light
+is flat. Most of a mirror image is: on the command timing's five 2048 × 1536 frames, 0.5–28 % of the pixels have a
+window that is not."""
+TWO_COLOUR_BAND = 6
+"""Height (blocks) of the bands of rows `_busy_boxes` cuts the busy blocks into: within a band, each run of them
+along its columns is one job, computed from as far beyond it as the passes reach (`_two_colour_reach`)."""
+
+
+def _two_colour_reach() -> int:
+    """How far (px, even) a pixel of `_two_colour` reads the frame: the bilinear start's 1 px, 3 px a pass (half its
+    window), and the off-line share's window's half again (34 px)."""
+    half = TWO_COLOUR_WINDOW // 2
+    reach = 1 + TWO_COLOUR_STEPS * half + half
+    return reach + reach % 2  # (an even reach keeps a box's tile)
 
 
 def _window_variance(x: np.ndarray) -> np.ndarray:
@@ -179,21 +190,40 @@ def _window_variance(x: np.ndarray) -> np.ndarray:
     return sum(_box(x[c] * x[c]) - _box(x[c]) ** 2 for c in range(3))
 
 
-def _busy_boxes(x: np.ndarray) -> list:
-    """(top, bottom, left, right) of the regions of `TWO_COLOUR_BLOCK` blocks holding a window that is not flat, each
-    grown by a block (a region's top and left even, so that it keeps the frame's tile)."""
+def _busy_boxes(x: np.ndarray, where: np.ndarray | None = None) -> list:
+    """((top, bottom, left, right), (first, last, cfirst, clast)) of the jobs `_two_colour` runs its passes in: the
+    `TWO_COLOUR_BLOCK` blocks holding a window that is not flat (in `where`, (H, W) bool, or within reach of it, where
+    given) and those about them, cut in bands of `TWO_COLOUR_BAND` rows of blocks, within a band each run of them
+    along its columns (runs closer than their reaches merged); each to be computed from the frame's rows first:last
+    and columns cfirst:clast, which reach as far beyond it as its pixels read (`_two_colour_reach`). Tops and lefts
+    are even (the frame's tile kept), and the jobs depend on the frame alone, not on the cores they run on."""
     import cv2
-    b = TWO_COLOUR_BLOCK
+    b, reach = TWO_COLOUR_BLOCK, _two_colour_reach()
     busy = _window_variance(x) >= TWO_COLOUR_FLAT
+    if where is not None:  # (and what lies within the reach of it, which its pixels read)
+        where = np.ascontiguousarray(where, dtype=bool).view(np.uint8)
+        busy &= cv2.dilate(where, np.ones((2 * reach + 1,) * 2, np.uint8)).view(bool)
     h, w = busy.shape
     rows, cols = -(-h // b), -(-w // b)
     padded = np.zeros((rows * b, cols * b), bool)
     padded[:h, :w] = busy
     blocks = padded.reshape(rows, b, cols, b).any(axis=(1, 3)).astype(np.uint8)
-    grown = cv2.dilate(blocks, np.ones((3, 3), np.uint8))
-    n, _, stats, _ = cv2.connectedComponentsWithStats(grown, connectivity=8)
-    return [(int(y) * b, min(int(y + bh) * b, h), int(x0) * b, min(int(x0 + bw) * b, w))
-            for x0, y, bw, bh, _ in stats[1:n]]
+    grown = cv2.dilate(blocks, np.ones((3, 3), np.uint8)).astype(bool)
+    gap = -(-2 * reach // b)  # (blocks: runs closer than this share most of their reach)
+    jobs = []
+    for r0 in range(0, rows, TWO_COLOUR_BAND):
+        band = grown[r0:r0 + TWO_COLOUR_BAND]
+        on = np.flatnonzero(band.any(axis=0))
+        if not len(on):
+            continue
+        breaks = np.flatnonzero(np.diff(on) > gap)
+        for c0, c1 in zip(on[np.r_[0, breaks + 1]], on[np.r_[breaks, len(on) - 1]] + 1):
+            ys = np.flatnonzero(band[:, c0:c1].any(axis=1))
+            top, bottom = (r0 + int(ys[0])) * b, min((r0 + int(ys[-1]) + 1) * b, h)
+            left, right = int(c0) * b, min(int(c1) * b, w)
+            jobs.append(((top, bottom, left, right),
+                         (max(top - reach, 0), min(bottom + reach, h), max(left - reach, 0), min(right + reach, w))))
+    return jobs
 
 
 def _two_colour_passes(light: np.ndarray, tile: list) -> np.ndarray:
@@ -231,18 +261,19 @@ def _two_colour_passes(light: np.ndarray, tile: list) -> np.ndarray:
     return np.clip(x, 0.0, 1.0, out=x)
 
 
-def _off_line_share(x: np.ndarray, rows: slice = slice(None)) -> np.ndarray:
+def _off_line_share(x: np.ndarray, region: tuple = (slice(None), slice(None))) -> np.ndarray:
     """(H, W): the share of each window's colour variance (`x`: (3, H, W)) off its main axis, 1 − λ₁ / trace of its
     3 × 3 covariance (λ₁ its largest eigenvalue, in closed form: Smith, "Eigenvalues of a symmetric 3 × 3 matrix",
-    Comm. ACM 4, 1961); 0 where the window is flat (`TWO_COLOUR_FLAT`). Of the given `rows` alone (windows still read
-    from the whole of `x`), computed where they are not flat alone."""
+    Comm. ACM 4, 1961); 0 where the window is flat (`TWO_COLOUR_FLAT`). Of the pixels of `region` (rows, columns)
+    alone, their windows read from the whole of `x`; computed where they are not flat alone."""
     mean, prod = _window_moments(x)
-    total = sum((prod[c, c][rows] - mean[c][rows] * mean[c][rows]).astype(np.float64) for c in range(3))
+    total = sum((prod[c, c][region] - mean[c][region] * mean[c][region]).astype(np.float64) for c in range(3))
     share = np.zeros(total.shape, np.float64)
     busy = total >= TWO_COLOUR_FLAT
     if not busy.any():
         return share
-    c = {p: (prod[p][rows][busy] - mean[p[0]][rows][busy] * mean[p[1]][rows][busy]).astype(np.float64) for p in _PAIRS}
+    c = {p: (prod[p][region][busy] - mean[p[0]][region][busy] * mean[p[1]][region][busy]).astype(np.float64)
+         for p in _PAIRS}
     total = c[0, 0] + c[1, 1] + c[2, 2]
     q = total / 3.0
     d0, d1, d2 = c[0, 0] - q, c[1, 1] - q, c[2, 2] - q
@@ -255,30 +286,31 @@ def _off_line_share(x: np.ndarray, rows: slice = slice(None)) -> np.ndarray:
     return share
 
 
-def _two_colour(light: np.ndarray, pattern: str) -> np.ndarray:
-    """(H, W, 3) float64 sRGB in [0, 1]: `_two_colour_passes` where the frame is not flat (`_busy_boxes`; its bilinear
-    start elsewhere), VNG's colour where the window's colours lie on no line (`TWO_COLOUR_OFF_LINE`). Written to touch
-    few image-sized arrays: a fresh process pays for each one's pages (0.7 s of a 2048 × 1536 frame's 1.2 s, before)."""
+def _two_colour(light: np.ndarray, pattern: str, where: np.ndarray | None = None) -> np.ndarray:
+    """(H, W, 3) float64 sRGB in [0, 1]: `_two_colour_passes` where the frame is not flat (`_busy_boxes`: in `where` or
+    within reach of it, where given; its bilinear start elsewhere), VNG's colour where the window's colours lie on no
+    line (`TWO_COLOUR_OFF_LINE`). Written to touch few image-sized arrays: a fresh process pays for each one's pages
+    (0.7 s of a 2048 × 1536 frame's 1.2 s, before)."""
     from raytrace.chroma import demosaiced_mosaic
     from raytrace.render import linear_to_srgb8
     from raytrace.response import srgb_to_linear
     tile = _tile(pattern)
     light32 = light.astype(np.float32)
     x = _bilinear(light32, tile)
-    boxes = _busy_boxes(x)
+    jobs = _busy_boxes(x, where)
     out = np.empty(light.shape + (3,), np.float64)
     for c in range(3):
         out[..., c] = x[c]
-    if not boxes:
+    if not jobs:
         return _encoded_in_place(out)
     vng = demosaiced_mosaic(linear_to_srgb8(light), pattern)
     table = srgb_to_linear(np.arange(256) / 255.0)
     lo, hi = TWO_COLOUR_OFF_LINE
 
-    def strip(job):  # rows top:bottom of a box, read from rows above and below it as far as the passes reach
-        (top, bottom, left, right), (first, last) = job
-        part = _two_colour_passes(light32[first:last, left:right], tile)
-        inner = slice(top - first, bottom - first)
+    def strip(job):  # a box, computed from as far beyond it as its pixels read
+        (top, bottom, left, right), (first, last, cfirst, clast) = job
+        part = _two_colour_passes(light32[first:last, cfirst:clast], tile)
+        inner = (slice(top - first, bottom - first), slice(left - cfirst, right - cfirst))
         weight = np.clip((hi - _off_line_share(part, inner)) / (hi - lo), 0.0, 1.0)[..., None]
         region = (slice(top, bottom), slice(left, right))
         out[region] = weight * np.moveaxis(part, 0, -1)[inner] + (1.0 - weight) * table[vng[region]]
@@ -286,23 +318,9 @@ def _two_colour(light: np.ndarray, pattern: str) -> np.ndarray:
     from concurrent.futures import ThreadPoolExecutor
 
     from depth.workers import available_cores
-    cores = available_cores()
-    jobs = [job for box in boxes for job in _strips(box, cores, light.shape[0])]
-    with ThreadPoolExecutor(min(cores, len(jobs))) as pool:  # (numpy's and OpenCV's loops let go of the GIL)
-        list(pool.map(strip, jobs))
+    with ThreadPoolExecutor(min(available_cores(), len(jobs))) as pool:  # (numpy's and OpenCV's loops let go of
+        list(pool.map(strip, jobs))  # the GIL)
     return _encoded_in_place(out)
-
-
-def _strips(box: tuple, n: int, height: int) -> list:
-    """((top, bottom, left, right), (first, last)) of `n` strips of rows of a box (each top even: the frame's tile
-    kept), each to be computed from rows first:last, which reach as far beyond it as the passes do (they then give
-    its rows exactly what one computation of the whole box does)."""
-    top, bottom, left, right = box
-    reach = TWO_COLOUR_STEPS * (TWO_COLOUR_WINDOW // 2) + 2
-    n = max(1, min(n, (bottom - top) // (4 * reach)))  # (strips much taller than their overlap)
-    cuts = [top + 2 * round((bottom - top) * i / n / 2) for i in range(n)] + [bottom]
-    return [((cuts[i], cuts[i + 1], left, right), (max(cuts[i] - reach, 0), min(cuts[i + 1] + reach, height)))
-            for i in range(n)]
 
 
 def _encoded_in_place(lin: np.ndarray) -> np.ndarray:
@@ -342,12 +360,14 @@ def raw_light(frame, pattern: str, black: float = 0.0, white: float | None = Non
 
 
 def from_raw_frame(frame, pattern: str, demosaic: str = DEMOSAIC, black: float = 0.0, white: float | None = None,
-                   gains=None) -> np.ndarray:
+                   gains=None, where: np.ndarray | None = None) -> np.ndarray:
     """The sRGB image (H, W, 3) a raw Bayer `frame` makes: (H, W) uint8 or uint16, each pixel its colour filter's
     sample of light (`pattern`: `raytrace.chroma.BAYER_PATTERNS`), linear: `raw_light` (0 none at `black`, full scale
     at `white`, each channel times its gain). `demosaic` (`DEMOSAICS`): "VNG" gives uint8 codes, the others float64 in
     [0, 1]. Either is read as a demosaiced camera's image (`reconstruct`'s `compressed`: red and blue interpolated over
-    three pixels of four, as a JPEG image's chroma is)."""
+    three pixels of four, as a JPEG image's chroma is). `where` ((H, W) bool): the pixels that will be read
+    (`depth.reconstruct.reading_region`); "two-colour" then runs its passes about these alone, and gives them the
+    colours it gives them without it; beyond their reach, bilinear's colour."""
     import cv2
 
     from raytrace.chroma import demosaiced_mosaic
@@ -356,10 +376,12 @@ def from_raw_frame(frame, pattern: str, demosaic: str = DEMOSAIC, black: float =
     if demosaic not in DEMOSAICS:
         raise DepthError(f"demosaic: expected one of {', '.join(DEMOSAICS)}, got {demosaic!r}")
     light = raw_light(frame, pattern, black, white, gains)
+    if where is not None and np.shape(where) != light.shape:
+        raise DepthError(f"where: expected a mask of the frame's {light.shape}, got {np.shape(where)}")
     if demosaic == "VNG":
         return demosaiced_mosaic(linear_to_srgb8(light), pattern)
     if demosaic == "two-colour":
-        return _two_colour(light, pattern)
+        return _two_colour(light, pattern, where)
     code = getattr(cv2, f"COLOR_Bayer{pattern}2RGB" + ("_EA" if demosaic == "edge-aware" else ""))
     values = np.round(light * 65535.0).astype(np.uint16)  # (OpenCV's take integers; a 16-bit frame's own, unscaled)
     return linear_to_srgb(np.clip(cv2.cvtColor(np.ascontiguousarray(values), code) / 65535.0, 0.0, 1.0))

@@ -158,46 +158,106 @@ def test_a_frame_s_light_runs_from_its_black_level_to_its_white_level_times_each
         raw_light(np.zeros((2, 2), np.uint16), "RGGB", gains=(1.0, 0.0, 1.0))
 
 
-def test_two_colour_is_the_same_in_strips_on_several_cores(monkeypatch):
-    """Its passes run on the blocks that are not flat, in strips of rows read as far beyond them as the passes
-    reach, one per core: the same image on 1 core and on 3. Beyond their reach of any edge, the frame's light."""
-    import depth.workers
-    from raytrace.chroma import bayer_mosaic
-    rng = np.random.default_rng(7)
-    light = np.full((400, 200, 3), 0.3)
-    for _ in range(12):  # rectangles of colour, edges at fractions of a pixel
-        y, x = rng.uniform(0, 360), rng.uniform(0, 120)
-        rows, cols = np.arange(400)[:, None] + 0.5, np.arange(200)[None, :] + 0.5
+def _rectangles(shape, seed, straddling=()):
+    """Light (H, W, 3): rectangles of colour (30 × 25 px, edges at fractions of a pixel) on grey, 12 about the frame's
+    left part and one at each top-left of `straddling`; a flat band from column 128 on."""
+    rng = np.random.default_rng(seed)
+    h, w = shape
+    light = np.full((h, w, 3), 0.3)
+    rows, cols = np.arange(h)[:, None] + 0.5, np.arange(w)[None, :] + 0.5
+    corners = [(rng.uniform(0, h - 40), rng.uniform(0, 95)) for _ in range(12)] + list(straddling)
+    for y, x in corners:
         cover = np.clip(np.minimum(rows - y, y + 30 - rows) + 0.5, 0, 1) * np.clip(np.minimum(cols - x, x + 25 - cols)
                                                                                  + 0.5, 0, 1)
         light = light + cover[..., None] * (rng.uniform(0.05, 0.9, 3) - light)
-    light[:, 128:] = 0.3  # (a flat band)
+    light[:, 128:] = 0.3
+    return light
+
+
+def _two_colour_of_the_whole_frame(frame, pattern):
+    """`two-colour`'s image written out as its parts computed on the whole frame at once (no blocks, no jobs):
+    the passes, their off-line share and VNG's colour blended by it, encoded as sRGB."""
+    import depth.chroma as chroma
+    from raytrace.response import srgb_to_linear
+    passes = chroma._two_colour_passes((frame / 65535.0).astype(np.float32), chroma._tile(pattern))
+    lo, hi = chroma.TWO_COLOUR_OFF_LINE
+    weight = np.clip((hi - chroma._off_line_share(passes)) / (hi - lo), 0.0, 1.0)[..., None]
+    vng = srgb_to_linear(from_raw_frame(frame, pattern, "VNG") / 255.0)
+    return _srgb(weight * np.moveaxis(passes, 0, -1) + (1.0 - weight) * vng)
+
+
+WHOLE_FRAME_ATOL = 1e-6
+"""The two-colour image against its passes over the whole frame: alike but for the float32 box sums' last bits (a
+job's read 2 px short of its reach moves pixels by up to 1e-3)."""
+
+
+def test_two_colour_in_jobs_on_any_number_of_cores_is_its_passes_over_the_whole_frame(monkeypatch):
+    """Its passes run on the blocks about what is not flat, in bands of rows, each computed from as far beyond it as
+    its pixels read (the bilinear start's 1 px, 3 px a pass, 3 px of the last window): the image its passes give
+    over the whole frame, the same on 1 core and on 3. Beyond their reach of any edge, the frame's light."""
+    import depth.chroma as chroma
+    import depth.workers
+    from raytrace.chroma import bayer_mosaic
+    light = _rectangles((512, 200), 7, straddling=[(370.3, 40.6), (378.0, 90.2)])  # (across the bands' cut, 384)
     frame = np.round(bayer_mosaic(light, "GRBG") * 65535).astype(np.uint16)
+    jobs = chroma._busy_boxes(chroma._bilinear((frame / 65535.0).astype(np.float32), chroma._tile("GRBG")))
+    assert len(jobs) == 2 and jobs[0][0][1] == jobs[1][0][0] == 384
+    assert chroma._two_colour_reach() == 1 + 10 * 3 + 3  # (34: even, as a tile needs)
     got = {}
     for cores in (1, 3):
         monkeypatch.setattr(depth.workers, "available_cores", lambda c=cores: c)
         got[cores] = from_raw_frame(frame, "GRBG", "two-colour")
     np.testing.assert_array_equal(got[1], got[3])
-    assert len(chroma_strips((0, 400, 0, 200), 3)) == 3
-    # beyond the passes' reach (30 px) of the band's edge, the light as it is
+    np.testing.assert_allclose(got[1], _two_colour_of_the_whole_frame(frame, "GRBG"), rtol=0, atol=WHOLE_FRAME_ATOL)
+    # beyond the passes' reach of the band's edge, the light as it is
     np.testing.assert_allclose(got[1][:, 160:], _srgb(np.round(0.3 * 65535) / 65535), rtol=0, atol=1e-7)
 
 
 def test_two_colour_runs_its_passes_on_the_blocks_about_what_is_not_flat_alone():
     import depth.chroma as chroma
     from raytrace.chroma import bayer_mosaic
-    light = np.full((512, 384, 3), 0.4)
+    light = np.full((768, 384, 3), 0.4)
     light[10:50, 12:40] = (0.8, 0.3, 0.1)  # one face, within the first block
+    light[500:540, 300:330] = (0.1, 0.3, 0.8)  # another, in the second band of rows (384 on)
     frame = np.round(bayer_mosaic(light, "RGGB") * 65535).astype(np.uint16)
     start = chroma._bilinear((frame / 65535.0).astype(np.float32), chroma._tile("RGGB"))
-    assert chroma._busy_boxes(start) == [(0, 128, 0, 128)]  # its block and the one about it
+    reach = chroma._two_colour_reach()
+    # each face's blocks and the blocks about them, a job each, read from as far beyond it as its pixels read
+    assert chroma._busy_boxes(start) == [((0, 128, 0, 128), (0, 128 + reach, 0, 128 + reach)),
+                                         ((384, 640, 192, 384), (384 - reach, 640 + reach, 192 - reach, 384))]
     got = from_raw_frame(frame, "RGGB", "two-colour")
-    np.testing.assert_allclose(got[128:, 128:], _srgb(np.round(0.4 * 65535) / 65535), rtol=0, atol=1e-7)
+    np.testing.assert_allclose(got, _two_colour_of_the_whole_frame(frame, "RGGB"), rtol=0, atol=WHOLE_FRAME_ATOL)
+    np.testing.assert_allclose(got[128:384], _srgb(np.round(0.4 * 65535) / 65535), rtol=0, atol=1e-7)
+    # two runs of blocks in one band closer than their reaches (one block apart, 64 < 2 × 34 px): one job
+    near = light.copy()
+    near[500:540, 300:330] = 0.4
+    near[200:240, 300:330] = (0.1, 0.3, 0.8)
+    near_start = chroma._bilinear((np.round(bayer_mosaic(near, "RGGB") * 65535) / 65535).astype(np.float32),
+                                  chroma._tile("RGGB"))
+    assert chroma._busy_boxes(near_start) == [((0, 320, 0, 384), (0, 320 + reach, 0, 384))]
+    # only where it will be read (here about the first face): the second face's edges are bilinear's
+    where = np.zeros(frame.shape, bool)
+    where[20:40, 20:30] = True
+    assert chroma._busy_boxes(start, where) == chroma._busy_boxes(start)[:1]
+    only = from_raw_frame(frame, "RGGB", "two-colour", where=where)
+    np.testing.assert_array_equal(only[:384], got[:384])
+    bilinear = _srgb(np.moveaxis(start, 0, -1).astype(np.float64))
+    np.testing.assert_allclose(only[384:], bilinear[384:], rtol=0, atol=1e-7)
+    assert np.abs(only[384:] - got[384:]).max() > 0.01
 
 
-def chroma_strips(box, n):
-    from depth.chroma import _strips
-    return _strips(box, n, 400)
+def test_two_colour_gives_the_pixels_it_will_read_the_colours_it_gives_them_in_the_whole_frame():
+    """`where`: the pixels that will be read (a mirror region); those within the reach of its edge read what lies
+    beyond it as they do without it."""
+    from raytrace.chroma import bayer_mosaic
+    light = _rectangles((512, 200), 11, straddling=[(190.0, 60.5)])
+    frame = np.round(bayer_mosaic(light, "BGGR") * 65535).astype(np.uint16)
+    rows, cols = np.mgrid[:512, :200]
+    where = (rows - 120) ** 2 / 80 ** 2 + (cols - 60) ** 2 / 45 ** 2 < 1.0  # (an ellipse cutting rectangles)
+    whole = from_raw_frame(frame, "BGGR", "two-colour")
+    got = from_raw_frame(frame, "BGGR", "two-colour", where=where)
+    np.testing.assert_allclose(got[where], whole[where], rtol=0, atol=WHOLE_FRAME_ATOL)
+    assert np.abs(got[~where] - whole[~where]).max() > 0.01  # (beyond it, not all of them)
 
 
 def test_frames_and_arguments_it_cannot_read_are_refused():
@@ -212,4 +272,6 @@ def test_frames_and_arguments_it_cannot_read_are_refused():
     with pytest.raises(DepthError, match=r"^demosaic: expected one of VNG, bilinear, edge-aware, two-colour, "
                                          r"got 'AHD'$"):
         from_raw_frame(frame, "RGGB", "AHD")
+    with pytest.raises(DepthError, match=r"^where: expected a mask of the frame's \(8, 8\), got \(8, 6\)$"):
+        from_raw_frame(frame, "RGGB", where=np.ones((8, 6), bool))
     assert DEMOSAIC in DEMOSAICS

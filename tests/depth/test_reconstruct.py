@@ -411,6 +411,27 @@ def _identical_cubes_image(rig, placements, size=0.04):
     return linear_to_srgb8(render(scene, rig.camera, spp=16, seed=0).image), cubes
 
 
+@pytest.mark.parametrize("compressed", [False, True])
+def test_reconstruct_reads_no_pixel_beyond_its_reading_region(rig, compressed):
+    """`reading_region`: the mirror region and `READING_MARGIN_PX` about it, all of the image a reading reads (a raw
+    frame's demosaic need not work beyond it). The pixels beyond it, replaced by noise, change no cube and no
+    refusal."""
+    from depth.reconstruct import READING_MARGIN_PX, reading_region, reconstruct
+    image, _ = _identical_cubes_image(rig, [(0.4, -45.0, 0.0), (0.45, 40.0, 10.0), (1.0, 15.0, 0.0)])
+    region = reading_region(rig.camera, rig.mirror)
+    mirror = mirror_mask(rig.camera, rig.mirror)
+    assert np.all(region[mirror]) and np.mean(~region) > 0.1
+    cols = np.flatnonzero(~region[300])  # (a row across the mirror: the margin on either side of it)
+    assert np.flatnonzero(mirror[300])[[0, -1]].tolist() == [cols[cols < 400][-1] + 1 + READING_MARGIN_PX,
+                                                            cols[cols > 400][0] - 1 - READING_MARGIN_PX]
+    noisy = image.copy()
+    noisy[~region] = np.random.default_rng(3).integers(0, 256, (int(np.sum(~region)), 3), dtype=np.uint8)
+    read = [reconstruct(im, rig.camera, rig.mirror, compressed=compressed) for im in (image, noisy)]
+    assert len(read[0].cubes) == 3
+    assert [c.to_dict() for c in read[1].cubes] == [c.to_dict() for c in read[0].cubes]
+    assert [r.to_dict() for r in read[1].refused] == [r.to_dict() for r in read[0].refused]
+
+
 def test_exact_shape_prior_reads_a_far_cube_at_the_scale_of_two_near_ones_in_a_rendered_image(rig):
     """Three cubes 4 cm across, two near (fronts 17–19 px wide), one 1 m from the axis (7.5 px wide), whose
     own edges hardly fix its scale: its depth σ alone is about as large as its depth. `exact_shape_prior` reads
