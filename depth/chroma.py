@@ -307,7 +307,7 @@ def _two_colour(light: np.ndarray, pattern: str, where: np.ndarray | None = None
     table = srgb_to_linear(np.arange(256) / 255.0)
     lo, hi = TWO_COLOUR_OFF_LINE
 
-    def strip(job):  # a box, computed from as far beyond it as its pixels read
+    def run(job):  # a box, computed from as far beyond it as its pixels read
         (top, bottom, left, right), (first, last, cfirst, clast) = job
         part = _two_colour_passes(light32[first:last, cfirst:clast], tile)
         inner = (slice(top - first, bottom - first), slice(left - cfirst, right - cfirst))
@@ -319,7 +319,7 @@ def _two_colour(light: np.ndarray, pattern: str, where: np.ndarray | None = None
 
     from depth.workers import available_cores
     with ThreadPoolExecutor(min(available_cores(), len(jobs))) as pool:  # (numpy's and OpenCV's loops let go of
-        list(pool.map(strip, jobs))  # the GIL)
+        list(pool.map(run, jobs))  # the GIL)
     return _encoded_in_place(out)
 
 
