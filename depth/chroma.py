@@ -1,10 +1,14 @@
-"""Lateral chromatic aberration undone: each colour channel sampled where it images green's rays.
+"""A colour camera's channels made the image `reconstruct` reads: lateral chromatic aberration undone, and raw
+Bayer frames demosaiced.
 
 A camera whose red or blue channel has a lens of its own (`raytrace.chroma`, `[camera.red]` / `[camera.blue]`)
 images an edge in that channel tenths of a pixel to pixels away from where green images it, more so toward the
 image's corners. Read as it is, a face's sides come out fringed: its colour steps in two places, the edges read
 between them. `aligned_to_green` resamples red and blue onto green's geometry, so that every later step reads the
 image a camera without the aberration would have taken (up to the resampling's own blur).
+
+A camera's raw Bayer frame (`[camera] mosaic`) holds one channel's sample of light per pixel. `from_raw_frame` makes
+it an sRGB image by one of `DEMOSAICS` (`raw_light` its values as light).
 """
 
 from __future__ import annotations
