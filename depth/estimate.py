@@ -1338,9 +1338,21 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             fits = [one(starts[0])]
         best = None
         for x, sol in fits:
-            if sol.status >= 0 and (best is None or sol.cost < best[1].cost):  # 0: stopped at max_nfev
+            if sol.status >= 0 and not degenerate(x) and (best is None or sol.cost < best[1].cost):  # 0: max_nfev
                 best = (x, sol)
         return best
+
+    def degenerate(x):
+        """Whether pose x (7,) is no face: its centre or size not finite, or the edge points' model coordinates not
+        finite there for half of them or more. `resids` counts such a point's residual as 0, so a face driven off
+        towards an infinite size fits every point at no cost: the merged top face's refit of an unseen holdout
+        render (seed 2020, scene 6, JPEG) ended at a log size of 1158, an edge length that overflows to inf."""
+        if not np.all(np.isfinite(x)):
+            return True
+        rot, c, s = unpack(x[None])
+        if not (np.all(np.isfinite(c)) and np.isfinite(s[0]) and s[0] > 0):
+            return True
+        return 2 * np.count_nonzero(np.isfinite(coords(p, d, c, _square_axes(rot, base), s))) <= len(sid)
 
     def refined(free: bool, starts):
         """Solve, re-measure the pixel scales at the solution, and solve once more from there."""
@@ -1429,7 +1441,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         sol = fit_lsq(best[0][upright], upright, own_scales=usable, bounds=upright_bounds, **opts)
         x = full(sol.x)
         weight = pixel_weights(x)
-        if sol.status < 0 or np.divide(*costs([(x, weight), fitted])) > PROFILE_GAIN:
+        if sol.status < 0 or degenerate(x) or np.divide(*costs([(x, weight), fitted])) > PROFILE_GAIN:
             weight = keep
             return None
         return x, sol

@@ -2326,3 +2326,51 @@ def test_every_merged_face_is_a_chain_front_back_back_front():
         assert sorted(w) == [-1.0, -1.0, 0.0, 0.0]
         front = [i for i in range(4) if w[i] == 0]
         assert (front[1] - front[0]) % 4 in (1, 3)  # adjacent around the quadrilateral
+
+
+DIVERGING_FACE = Path(__file__).resolve().parents[1] / "data" / "mitsuba_colour_2020_s6_jpeg_face.npz"
+"""The measurement `reconstruct` made of a floor shadow in an unseen holdout render (`python -m bench.holdout 2020
+--jpeg`, scene 6: Mitsuba 3, 16 spp, through the reconstruct bench's JPEG coder): a grey hexagon 20 × 25 px at
+(1047, 1498) of the 2048×1536 image. Its edge points (left, right, top, bottom, the left back edge), corners, face
+pixels and scalars as measured; the image and the blob mask as a crop from `origin`, the rest of the image 0."""
+
+
+def _diverging_face():
+    """(rays, measurement) of `DIVERGING_FACE`, in the render's setup (camera at (0, −0.04213, 0.65663) looking at
+    the mirror's centre, focal 3120.263 px; mirror radius 0.12264 m, height 0.71636 m, about y)."""
+    from raytrace.camera import PinholeCamera
+    from raytrace.mirror import CylinderMirror
+    from raytrace.truth import mirror_rays
+
+    f = np.load(DIVERGING_FACE)
+    (h, w), (r0, c0), (ch, cw) = f["shape"], f["origin"], f["blob"].shape
+    image, blob = np.zeros((h, w, 3)), np.zeros((h, w), dtype=bool)
+    image[r0:r0 + ch, c0:c0 + cw] = f["image"] / 255.0
+    blob[r0:r0 + ch, c0:c0 + cw] = f["blob"]
+    noise, bias, no_gap = (float(v) for v in f["scalars"])
+    meas = FaceMeasurement(sides_px=(f["left"], f["right"], f["top"], f["bottom"]), corners_px=f["corners"],
+                           face_px=f["face"], edge_noise_px=noise, back_sides_px=(f["back_left"], None),
+                           edge_bias_px=bias, side_gaps_px=tuple(f["gaps"]), strip_px=tuple(f["strips"]),
+                           no_side_face_gap_px=no_gap, blob_mask=blob, image=image)
+    camera = PinholeCamera.from_look_at((int(w), int(h)), (3120.263, 3120.263), None, (0.0, -0.04213, 0.65663),
+                                        (0.0, 0.0, 0.0), (0.0, 1.0, 0.0))
+    mirror = CylinderMirror(0.12264, 0.71636, (0, 0, 0), (0, 1, 0))
+
+    def rays(px):
+        r = mirror_rays(camera, mirror, px)
+        return r.points, r.directions
+    return rays, meas
+
+
+def test_a_fit_driven_off_to_an_infinite_size_is_no_reading():
+    """`exact`'s refit of this face with a merged top face ran off towards an infinite edge length (log size 1158,
+    past float64), where every edge point's model coordinate is no number and `resids` counts it as 0: a cost of
+    0. Building that cube raised `RaytraceError` ("size: expected a positive finite number, got inf"), and
+    `catadioptric reconstruct` lost every cube of the image to it. Such a pose is no reading: the face is refused
+    or read at a finite pose, and nothing raises."""
+    rays, meas = _diverging_face()
+    est = estimate_face(rays, meas, method="exact", up=np.array([0.0, 1.0, 0.0]))
+    if est:
+        assert np.isfinite(est.size) and est.size > 0 and np.all(np.isfinite(est.center))
+    else:
+        assert est.reason
