@@ -1314,7 +1314,11 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             return _Lockstep(resids).run(calls)
         return [_Lockstep(resids).run([call])[0] for call in calls]
 
+    diverged = False  # whether a solve ended at a `degenerate` pose
+
     def solve(free: bool, starts, max_nfev: int = 300):
+        nonlocal diverged
+
         def one(x0, evaluate=None):
             if free:
                 sol = fit_lsq(x0[tilted], tilted, bounds=([-lim] * 3 + [-np.inf] * (len(tilted) - 3),
@@ -1338,7 +1342,9 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
             fits = [one(starts[0])]
         best = None
         for x, sol in fits:
-            if sol.status >= 0 and not degenerate(x) and (best is None or sol.cost < best[1].cost):  # 0: max_nfev
+            if sol.status >= 0 and degenerate(x):  # (0: stopped at max_nfev)
+                diverged = True
+            elif sol.status >= 0 and (best is None or sol.cost < best[1].cost):
                 best = (x, sol)
         return best
 
@@ -1598,7 +1604,8 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
                     odds = np.exp(-0.5 * len(sid) * (rms_other ** 2 - rms_kept ** 2) / lik_scale)
                     rival = ((before[0] if keep else after)[0], float(odds / (1.0 + odds)))
     if result is None:
-        return FailedEstimate("exact", "least squares did not converge from any starting turn")
+        return FailedEstimate("exact", "least squares diverged" if diverged else
+                              "least squares did not converge from any starting turn")
     x_best, cov, log, scales, upright_reading = result
     rot, c, s = unpack(x_best)
     if not (np.all(np.isfinite(x_best)) and np.all(np.isfinite(c)) and np.isfinite(s) and s > 0):
