@@ -10,6 +10,7 @@ reason, rather than guessed.
 from __future__ import annotations
 
 import contextlib
+import functools
 import itertools
 from dataclasses import dataclass, field, replace
 
@@ -19,9 +20,9 @@ import numpy as np
 from depth.errors import DepthError
 from depth.estimate import (EDGE_BIAS_PX, EDGE_BIAS_PX_BLURRED, EDGE_BIAS_PX_COMPRESSED, METHODS,
                             NO_SIDE_FACE_GAP_PX, NO_SIDE_FACE_GAP_PX_SHARP, SOLVER_MODULES, CubeEstimate,
-                            FaceMeasurement, _covering, _silhouette_disagreement, at_common_size, common_size_of,
-                            estimate_face, estimate_face_on_floor, estimate_faces_shape_prior, expected_work,
-                            fused_from, with_size_std)
+                            FaceMeasurement, FailedEstimate, _covering, _silhouette_disagreement, at_common_size,
+                            common_size_of, estimate_face, estimate_face_on_floor, estimate_faces_shape_prior,
+                            expected_work, fused_from, with_size_std)
 from depth.workers import SharedMemory, fork_chain, fork_helper, fork_map, import_in_background
 from raytrace.scene import Cube
 
@@ -302,6 +303,27 @@ blob's bounds widened by this (px) on each side: a darker face of the same cube 
 
 SAME_FACE_REASON = "the same face as the cube read at"
 """How `_one_per_face`'s refusal begins."""
+
+
+INTERNAL_ERROR_REASON = "internal error while reading this face"
+"""How a face's refusal begins where reading it raised an exception no check expects (`_guarded`)."""
+
+
+def _guarded(task, refused):
+    """`task` (one face's reading) with an exception it raises turned into `refused(reason, *its arguments)`, the
+    reason naming the exception; a `DepthError` (the caller's input) is raised as it is. One face's failure then
+    costs that face, not the image's other cubes: a floor shadow's refit in an unseen holdout render ran off to an
+    infinite size, and the whole image raised a `RaytraceError` about a "size" no setup had given (`depth.estimate`
+    now takes such a pose for no fit)."""
+    @functools.wraps(task)
+    def run(*args, **kwargs):
+        try:
+            return task(*args, **kwargs)
+        except DepthError:
+            raise
+        except Exception as err:  # (any failure of one face's reading is that face's refusal)
+            return refused(f"{INTERNAL_ERROR_REASON} ({type(err).__name__}: {err}): please report it", *args)
+    return run
 
 
 def _one_per_face(results):
@@ -947,6 +969,8 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                     return again + (grown, evidence(again[1]))
         return outcome if isinstance(outcome, str) else outcome + (None, evidence(outcome[1]))
 
+    outlined = _guarded(outlined, lambda reason, det: reason)
+
     def evidence(outline):
         """The blurred face's share of the image's blur-domain verdict, where one is to be reached: here, in
         the worker, rather than all faces' in turn afterwards (0.5 s for a 2048×1536 floor scene's faces)."""
@@ -1008,6 +1032,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                 return None
             return expected_work(outcome[3], method), outcome[3]
 
+        @functools.partial(_guarded, refused=lambda reason, i, meas: None)  # (`settled` tries again, and refuses)
         def first_estimate(i, meas):
             return estimate_face(rays, _attached(meas, detections[i].mask, img), method=method,
                                  cube_size=cube_size, up=up, ray_slopes=slopes)
@@ -1143,6 +1168,9 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
             return est, outline, reason, bbox, None
         own = meas.blob_mask is sources[k][0].mask
         return est, outline, reason, bbox, (k, _bare(meas), None if own else np.packbits(meas.blob_mask))
+
+    settled = _guarded(settled, lambda reason, k, est=None: (FailedEstimate(method, reason), measured[k][2], reason,
+                                                             measured[k][1], None))
 
     def attached(reading):
         """The measurement of a reading of `settled`, with its blob mask."""

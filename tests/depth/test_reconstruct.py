@@ -1,5 +1,6 @@
 """Tests of depth.reconstruct's physical checks on an estimate, on analytic geometry (no renderer)."""
 
+import contextlib
 import functools
 from dataclasses import replace
 
@@ -430,6 +431,51 @@ def test_reconstruct_reads_no_pixel_beyond_its_reading_region(rig, compressed):
     assert len(read[0].cubes) == 3
     assert [c.to_dict() for c in read[1].cubes] == [c.to_dict() for c in read[0].cubes]
     assert [r.to_dict() for r in read[1].refused] == [r.to_dict() for r in read[0].refused]
+
+
+
+@pytest.mark.parametrize("stage", ["outline", "estimate", "helper"])
+def test_a_face_whose_reading_raises_is_refused_and_the_other_cubes_are_read_as_before(rig, monkeypatch, stage):
+    """`_guarded`: an exception no check expects, raised while one face is outlined or estimated (put there for the
+    cube leftmost in the image), refuses that face with the exception named, and the image's other cubes come out
+    as they do without it (the whole image raised before). A `DepthError`, the caller's input, is raised as it is.
+    "helper": read by a helper process forked once the fault is in place (`start_helper`), which estimates the
+    coloured faces as their outlines come (`fork_chain`)."""
+    import depth.measure
+    import depth.reconstruct as rec_module
+    import depth.workers
+    from depth.errors import DepthError
+
+    image, _ = _identical_cubes_image(rig, [(0.4, -45.0, 0.0), (0.45, 40.0, 10.0), (1.0, 15.0, 0.0)])
+    plain = rec_module.reconstruct(image, rig.camera, rig.mirror, workers=1)
+    assert len(plain.cubes) == 3 and plain.refused == []
+    left = min(plain.cubes, key=lambda c: c.bbox[0])
+    module, name = (depth.measure, "face_outline") if stage == "outline" else (rec_module, "estimate_face")
+    helped = contextlib.nullcontext
+    if stage == "helper":  # (forked once a process, where the estimators' modules are not imported yet: here, now)
+        monkeypatch.setattr(rec_module, "_HELPER_FORKED", False)
+        monkeypatch.setattr(depth.workers, "will_fork_helper", lambda modules: depth.workers._can_fork())
+        helped = rec_module.helper_started
+    real = getattr(module, name)
+
+    def failing(error):
+        def call(*args, **kwargs):
+            face_x = np.mean(np.nonzero(args[1])[1]) if stage == "outline" else np.mean(args[1].corners_px[:, 0])
+            if face_x < left.bbox[2]:  # (bbox: x0, y0, x1, y1)
+                raise error
+            return real(*args, **kwargs)
+        return call
+
+    monkeypatch.setattr(module, name, failing(FloatingPointError("put here by the test")))
+    with helped():
+        got = rec_module.reconstruct(image, rig.camera, rig.mirror, workers=1)
+    assert [c.to_dict() for c in got.cubes] == [c.to_dict() for c in plain.cubes if c is not left]
+    assert [r.reason for r in got.refused] == [
+        f"{rec_module.INTERNAL_ERROR_REASON} (FloatingPointError: put here by the test): please report it"]
+    assert got.refused[0].bbox == left.bbox
+    monkeypatch.setattr(module, name, failing(DepthError("cube_size: put here by the test")))
+    with pytest.raises(DepthError, match="put here by the test"), helped():
+        rec_module.reconstruct(image, rig.camera, rig.mirror, workers=1)
 
 
 def test_exact_shape_prior_reads_a_far_cube_at_the_scale_of_two_near_ones_in_a_rendered_image(rig):
