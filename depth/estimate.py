@@ -1349,11 +1349,14 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         return best
 
     def degenerate(x):
-        """Whether pose x (7,) is no face: its centre or size not finite, or the edge points' model coordinates not
-        finite there for half of them or more. `resids` counts such a point's residual as 0, so a face driven off
-        towards an infinite size fits every point at no cost: the merged top face's refit of an unseen holdout
-        render (seed 2020, scene 6, JPEG) ended at a log size of 1158, an edge length that overflows to inf."""
-        if not np.all(np.isfinite(x)):
+        """Whether pose x (7,) is no face: its centre or size not finite, its edge length beyond `LOG_SIZE_RANGE` of
+        the start's (a face grown or shrunk without bound: from a log size of 50 on, the solver's next steps read
+        a cube 2e20 m across, or could not start for the infinities in its Jacobian), or the edge points' model
+        coordinates not finite there for half of them or more. `resids` counts such a point's residual as 0, so a
+        face driven off towards an infinite size fits every point at no cost: the merged top face's refit of an
+        unseen holdout render (seed 2020, scene 6, JPEG) ended at a log size of 1158, an edge length that
+        overflows to inf."""
+        if not np.all(np.isfinite(x)) or abs(x[6]) > LOG_SIZE_RANGE:
             return True
         rot, c, s = unpack(x[None])
         if not (np.all(np.isfinite(c)) and np.isfinite(s[0]) and s[0] > 0):

@@ -1198,6 +1198,26 @@ def test_a_fit_whose_size_runs_off_to_infinity_is_refused(rig, monkeypatch):
     assert not est and "diverged" in est.reason
 
 
+@pytest.mark.parametrize("log_size", [5.0, 50.0, 705.0])
+def test_a_fit_whose_size_runs_off_but_stays_finite_is_refused(rig, monkeypatch, log_size):
+    """As above, the solver's answer sent to a size e^5, e^50 or e^705 times the start's: finite, but far beyond any
+    face's (`depth.estimate.LOG_SIZE_RANGE`). It was read as a cube of that size (e^50: 2e20 m across), or the
+    next solve could not start (e^705: its Jacobian infinite, a `ValueError`). Refused as diverged, quietly."""
+    import depth.estimate as E
+    meas = rig.measure(rig.cube(0.5, 8.0))
+    real = E.least_squares
+
+    def runaway(*args, **kwargs):
+        sol = real(*args, **kwargs)
+        sol.x = np.r_[sol.x[:-1], log_size]
+        return sol
+    monkeypatch.setattr(E, "least_squares", runaway)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        est = estimate_face(rig.rays, meas, method="exact", up=rig.mirror.axis)
+    assert not est and "diverged" in est.reason
+
+
 @pytest.mark.parametrize("distance, azimuth", [(0.4, -40.0), (0.5, -50.0), (0.4, 40.0)])
 def test_a_narrow_face_with_a_merged_side_face_reports_a_sigma_that_covers_its_depth(distance, azimuth):
     """One red 4 cm cube facing the mirror axis, 0.4–0.5 m from it, rendered by our ray tracer at
