@@ -1610,9 +1610,7 @@ def _exact(rays: RayFunction, meas: FaceMeasurement, start: CubeEstimate, local:
         return FailedEstimate("exact", "least squares diverged" if diverged else
                               "least squares did not converge from any starting turn")
     x_best, cov, log, scales, upright_reading = result
-    rot, c, s = unpack(x_best)
-    if not (np.all(np.isfinite(x_best)) and np.all(np.isfinite(c)) and np.isfinite(s) and s > 0):
-        return FailedEstimate("exact", "least squares diverged")
+    rot, c, s = unpack(x_best)  # (finite: every pose a solve or the turn profile ends at is checked, `degenerate`)
     axes = _square_axes(rot, base)
     normal = axes[2]
     # the front face's corners as its pose puts them (its vertical and horizontal edges: the in-plane turn too)

@@ -124,7 +124,6 @@ def test_a_bayer_mosaic_keeps_each_pixel_s_own_filter_channel_and_demosaicing_ke
         demosaiced(np.zeros((4, 4, 3), np.uint16))
 
 
-
 @pytest.mark.parametrize("pattern, first_row, second_row", [("RGGB", (0, 1), (1, 2)), ("BGGR", (2, 1), (1, 0)),
                                                             ("GRBG", (1, 0), (2, 1)), ("GBRG", (1, 2), (0, 1))])
 def test_each_bayer_pattern_records_its_tile_and_demosaics_a_colour_back_to_itself(pattern, first_row, second_row):
@@ -142,6 +141,7 @@ def test_each_bayer_pattern_records_its_tile_and_demosaics_a_colour_back_to_itse
     np.testing.assert_array_equal(demosaiced(flat, pattern)[4:-4, 4:-4], flat[4:-4, 4:-4])
     with pytest.raises(RaytraceError, match=r"pattern: expected one of RGGB, BGGR, GRBG, GBRG, got 'RGBG'"):
         bayer_mosaic(img, "RGBG")
+
 
 def channel_of(h, w):
     """Each pixel's filter of an RGGB mosaic: red (0) at even rows and columns, blue (2) at odd ones, green (1)."""
