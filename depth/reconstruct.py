@@ -534,10 +534,11 @@ CAST_SHADOW_IOU = 0.75
 """Overlap (intersection over union, in the image) of a blob with the shadow another cube read casts on the floor from
 which the blob is taken for that shadow (`_cast_shadow_overlaps`): their outlines within about a pixel of each other
 all round (two regions 7 px wide a pixel apart overlap by 6 / 8; the floor shadows the unseen holdouts read as cubes
-were 7–12 px wide). Those shadows overlap the shadow of a cube read by 0.68–0.94 (0.78–0.94 but in 1414 s5's PNG runs,
-whose caster, the black cube, was read 15 % large); the real cubes darker than the floor beside them, the shadow of
-another cube read by at most 0.59 on the holdouts (1414 s0/4), 0.53 on the reconstruct bench, and under 0.4 on the
-lighting and on-floor benches (`exact`'s readings, ninety-seventh session)."""
+were 7–12 px wide). 13 of those 15 shadows overlap their own caster's shadow by 0.78–0.94, each naming the cube whose
+shadow under the renderer's sun lies within 1.7 px of it; 1414 s5's, in its PNG runs, by 0.41 (its caster, the black
+cube, read 15 % large, σ 22 %), and another cube's by 0.68. The real cubes darker than the floor beside them overlap the
+shadow of another cube read by at most 0.59 on the holdouts (1414 s0/4), 0.53 on the reconstruct bench, and under 0.4
+on the lighting and on-floor benches (`exact`'s readings, ninety-seventh session)."""
 
 CAST_SHADOW_SAMPLES = 16
 """Points per side of a shadow's outline on the floor reflected into the image (`_cast_shadow_outline`): the
