@@ -277,10 +277,12 @@ OVERLAY_FLAGGED = (255, 140, 0)
 
 
 def draw_overlay(image: np.ndarray, rec) -> np.ndarray:
-    """The image with each face outline, its corners and its depth drawn on it : (H, W, 3) uint8 RGB.
+    """The image with each face outline, its corners and its depth drawn on it, each refused blob boxed (a cast
+    shadow labelled so, with a line to the cube casting it) : (H, W, 3) uint8 RGB.
 
     `rec`: a `depth.reconstruct.Reconstruction`, or anything with its `mirror_mask`, `refused` (each with
-    `bbox`) and `cubes` (each with `corners_px`, `bbox`, `depth` and, optionally, `edge_misfit_px`)."""
+    `bbox`, and optionally `shadow_of_px`) and `cubes` (each with `corners_px`, `bbox`, `depth` and, optionally,
+    `edge_misfit_px`)."""
     out = image.copy()
     outline = cv2.dilate(rec.mirror_mask.astype(np.uint8), np.ones((3, 3), np.uint8)) - rec.mirror_mask.astype(np.uint8)
     out[outline > 0] = (255, 255, 255)
@@ -301,7 +303,13 @@ def draw_overlay(image: np.ndarray, rec) -> np.ndarray:
     for r in rec.refused:
         x0, y0, x1, y1 = r.bbox
         cv2.rectangle(out, (x0, y0), (x1, y1), (255, 60, 60), 1)
-        cv2.putText(out, "refused", (x0, max(y0 - 6, 12)), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 60, 60), 1, cv2.LINE_AA)
+        caster = getattr(r, "shadow_of_px", None)
+        cv2.putText(out, "refused" if caster is None else "shadow", (x0, max(y0 - 6, 12)), cv2.FONT_HERSHEY_SIMPLEX,
+                    0.4, (255, 60, 60), 1, cv2.LINE_AA)
+        if caster is not None:  # a cast shadow: a line from the middle of its box to the face of its caster
+            ends = np.round((np.array([((x0 + x1) / 2, (y0 + y1) / 2), caster]) + 0.5) * scale - 0.5).astype(np.int32)
+            cv2.line(out, tuple(int(v) for v in ends[0]), tuple(int(v) for v in ends[1]), (255, 60, 60), 1,
+                     cv2.LINE_AA, shift=3)
     return out
 
 

@@ -98,13 +98,16 @@ def _floor(mirror, method, cube_size, floor_height, floor_std):
 
 @dataclass(frozen=True)
 class Refusal:
-    """A cube seen but not estimated, with the reason."""
+    """A cube seen but not estimated, with the reason; `shadow_of_px`: for a blob refused as the shadow another cube
+    read casts on the floor, the middle (u, v) px of that cube's front face (else None)."""
 
     bbox: tuple
     reason: str
+    shadow_of_px: tuple | None = None
 
     def to_dict(self) -> dict:
-        return {"bbox_px": [int(x) for x in self.bbox], "reason": self.reason}
+        return {"bbox_px": [int(x) for x in self.bbox], "reason": self.reason,
+                **({} if self.shadow_of_px is None else {"shadow_of_px": [float(x) for x in self.shadow_of_px]})}
 
 
 @dataclass(frozen=True)
@@ -1388,7 +1391,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         """`_one_per_face`'s results with every face read whose blob is the shadow another cube read casts on the
         floor refused: darker than the floor beside it (`_darker_than_beside`), and overlapping that shadow by
         `CAST_SHADOW_IOU` or more (`_cast_shadow_overlaps`); the greatest overlap first, a face refused casting no
-        shadow after. With method exact alone: the shadow a cube casts turns with it, and the other methods take
+        shadow after, its caster's face noted in `shadow_of`. With method exact alone: the shadow a cube casts turns with it, and the other methods take
         each face to face the mirror's axis (shape_prior read a cube of the reconstruct bench's s06 as 64.8 mm across,
         23.7 mm true, whose face then overlapped another's shadow, read so too, by 0.76)."""
         if method != "exact":  # (exact_shape_prior's and the floor's faces are here as exact read them)
@@ -1411,6 +1414,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
             out[i] = (est, outline, f"{est.method}: the shadow the cube read at ({u:.0f}, {v:.0f}) px casts on the "
                       f"floor (darker than the floor beside it, and their overlap {best:.2f} >= {CAST_SHADOW_IOU})",
                       bbox, *reading)
+            shadow_of[i] = (float(u), float(v))
             kept.remove(i)
 
     # the estimates' progress, after the outlines' (the blobs refused at theirs counted as estimated)
@@ -1432,6 +1436,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                                  for (m, _, _), f in zip(measured, first)],
                            progress=estimated)
     results = _one_per_face(results)
+    shadow_of = {}  # index into results: the front face's middle px of the cube whose shadow the blob is
     results = cast_shadows(results)
     if one_size:
         results = common(results)
@@ -1440,9 +1445,9 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
     if refitted:
         if progress is not None and detections:  # (where no face was fitted at a common size)
             progress(steps * len(detections), steps * len(detections))
-    for est, outline, reason, bbox, _ in results:
+    for k, (est, outline, reason, bbox, _) in enumerate(results):
         if reason:
-            refused.append(Refusal(bbox, reason))
+            refused.append(Refusal(bbox, reason, shadow_of.get(k)))
             continue
         depth = float(mirror.distance_to_axis(est.center[None])[0])
         cubes.append(CubeResult(estimate=est, depth=depth, depth_std=float(est.std.get("z", np.nan)),

@@ -127,6 +127,8 @@ def test_a_floating_cube_s_shadow_on_the_floor_is_refused_as_its_shadow_and_the_
     (x, y, right, bottom), reason = rec.refused[0].bbox, rec.refused[0].reason
     assert x0 <= x < right <= x1 and y0 <= y < bottom <= y1
     u, v = np.mean(found.corners_px, axis=0)
+    assert rec.refused[0].shadow_of_px == pytest.approx((u, v), abs=1e-9)
+    assert rec.refused[0].to_dict()["shadow_of_px"] == pytest.approx([u, v], abs=1e-9)
     said = re.fullmatch(rf"exact: the shadow the cube read at \({u:.0f}, {v:.0f}\) px casts on the floor \(darker than "
                         rf"the floor beside it, and their overlap (0\.\d\d) >= {CAST_SHADOW_IOU}\)", reason)
     assert said and float(said[1]) >= 0.85  # (the shadow traced and its blob nearly one region)
@@ -160,3 +162,32 @@ def test_a_light_mark_of_a_shadow_s_shape_is_no_shadow(seed):
     assert np.percentile(image[y0:y1, x0:x1], 90) > np.median(image[y0 - 10:y0, x0:x1].astype(int)) + 15
     rec = reconstruct(image, camera, mirror, workers=1)
     assert not any("casts on the floor" in r.reason for r in rec.refused)
+
+
+def test_the_overlay_labels_a_cast_shadow_and_draws_a_line_to_its_caster():
+    import dataclasses
+
+    from catadioptric.reconstruct import draw_overlay
+    from depth.reconstruct import reconstruct
+
+    image, camera, mirror, _, _ = _shadow_scene(1)
+    rec = reconstruct(image, camera, mirror, workers=1)
+    (x0, y0, x1, y1), caster = rec.refused[0].bbox, np.array(rec.refused[0].shadow_of_px)
+    as_shadow = draw_overlay(image, rec)
+    as_any = draw_overlay(image, dataclasses.replace(rec, refused=[dataclasses.replace(rec.refused[0],
+                                                                                        shadow_of_px=None)]))
+    assert rec.refused[0].to_dict().keys() == {"bbox_px", "reason", "shadow_of_px"}
+    assert dataclasses.replace(rec.refused[0], shadow_of_px=None).to_dict().keys() == {"bbox_px", "reason"}
+    # the line: every pixel on the way from the shadow's box to the caster's face, away from both, is drawn
+    start = np.array([(x0 + x1) / 2, (y0 + y1) / 2])
+    for t in np.linspace(0.2, 0.8, 7):
+        u, v = np.round(start + t * (caster - start)).astype(int)
+        assert np.any(as_shadow[v - 1:v + 2, u - 1:u + 2] != image[v - 1:v + 2, u - 1:u + 2])
+        assert np.array_equal(as_any[v - 1:v + 2, u - 1:u + 2], image[v - 1:v + 2, u - 1:u + 2])
+    # the label over the box says what was refused: the two drawings differ there, off the line too
+    differ = np.any(as_shadow != as_any, axis=-1)
+    ys, xs = np.nonzero(differ[y0 - 20:y0, x0:x0 + 60])
+    along = np.array([xs + x0, ys + y0 - 20]).T - start
+    direction = (caster - start) / np.linalg.norm(caster - start)
+    off_line = np.abs(along[:, 0] * direction[1] - along[:, 1] * direction[0]) > 3.0
+    assert np.count_nonzero(off_line) > 10
