@@ -322,8 +322,9 @@ def _two_colour(light: np.ndarray, pattern: str, where: np.ndarray | None = None
     from concurrent.futures import ThreadPoolExecutor
 
     from depth.workers import available_cores
-    with ThreadPoolExecutor(min(available_cores(), len(jobs))) as pool:  # (numpy's and OpenCV's loops let go of
-        list(pool.map(run, jobs))  # the GIL)
+    # (threads: numpy's and OpenCV's loops let go of the GIL)
+    with ThreadPoolExecutor(min(available_cores(), len(jobs))) as pool:
+        list(pool.map(run, jobs))
     return _encoded_in_place(out)
 
 

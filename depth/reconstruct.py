@@ -1388,26 +1388,30 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         return out
 
     def cast_shadows(results):
-        """`_one_per_face`'s results with every face read whose blob is the shadow another cube read casts on the
-        floor refused: darker than the floor beside it (`_darker_than_beside`), and overlapping that shadow by
-        `CAST_SHADOW_IOU` or more (`_cast_shadow_overlaps`); the greatest overlap first, a face refused casting no
-        shadow after, its caster's face noted in `shadow_of`. With method exact alone: the shadow a cube casts turns with it, and the other methods take
-        each face to face the mirror's axis (shape_prior read a cube of the reconstruct bench's s06 as 64.8 mm across,
-        23.7 mm true, whose face then overlapped another's shadow, read so too, by 0.76)."""
+        """(`_one_per_face`'s results with every face read whose blob is the shadow another cube read casts on the
+        floor refused, {index of each refused so: the middle px of its caster's front face}): darker than the floor
+        beside it (`_darker_than_beside`), and overlapping that shadow by `CAST_SHADOW_IOU` or more
+        (`_cast_shadow_overlaps`); the greatest overlap first, a face refused casting no shadow after. With method
+        exact alone: the shadow a cube casts turns with it, and the other methods take each face to face the mirror's
+        axis (shape_prior read a cube of the reconstruct bench's s06 as 64.8 mm across, 23.7 mm true, whose face then
+        overlapped another's shadow, read so too, by 0.76)."""
         if method != "exact":  # (exact_shape_prior's and the floor's faces are here as exact read them)
-            return results
+            return results, {}
         floor_point = _floor_point(mirror, floor)
         kept = [i for i, r in enumerate(results) if not r[2]]
-        cubes = [_cube(results[j][0], up) for j in kept]
-        overlaps = {i: dict(zip(kept, _cast_shadow_overlaps(camera, mirror, rays, sources[i][0].mask, cubes,
-                                                            floor_point, up)))
-                    for i in kept if _darker_than_beside(img, sources[i][0].mask, blobs)}
-        out = list(results)
+        cubes = {j: _cube(results[j][0], up) for j in kept}
+        overlaps = {}  # per dark blob: {each other cube read: the overlap of its shadow}
+        for i in kept:
+            if _darker_than_beside(img, sources[i][0].mask, blobs):
+                others = [j for j in kept if j != i]
+                overlaps[i] = dict(zip(others, _cast_shadow_overlaps(camera, mirror, rays, sources[i][0].mask,
+                                                                     [cubes[j] for j in others], floor_point, up)))
+        out, shadow_of = list(results), {}
         while True:
-            best, i, j = max(((overlaps[i][j], i, j) for i in overlaps if i in kept for j in kept if j != i),
+            best, i, j = max(((o, i, j) for i in overlaps if i in kept for j, o in overlaps[i].items() if j in kept),
                              default=(0.0, None, None))
             if best < CAST_SHADOW_IOU:
-                return out
+                return out, shadow_of
             est, outline, _, bbox, *reading = out[i]
             caster, caster_outline = out[j][:2]
             u, v = np.mean(_front_face_px(caster, camera, mirror, caster_outline.corners_px), axis=0)
@@ -1436,8 +1440,7 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                                  for (m, _, _), f in zip(measured, first)],
                            progress=estimated)
     results = _one_per_face(results)
-    shadow_of = {}  # index into results: the front face's middle px of the cube whose shadow the blob is
-    results = cast_shadows(results)
+    results, shadow_of = cast_shadows(results)
     if one_size:
         results = common(results)
     elif floor is not None:
