@@ -570,7 +570,7 @@ shadow of another cube read by at most 0.59 on the holdouts (1414 s0/4), 0.53 on
 on the lighting and on-floor benches (`exact`'s readings, ninety-seventh session)."""
 
 CAST_SHADOW_SAMPLES = 16
-"""Points per side of a shadow's outline on the floor reflected into the image (`_cast_shadow_outline`): the
+"""Points per side of a shadow's outline on the floor reflected into the image (`_cast_shadow_outlines`): the
 mirror images the outline's straight sides as curves."""
 
 CAST_SHADOW_RAYS = 2048
@@ -652,11 +652,6 @@ def _cast_shadow_outlines(camera, mirror, cast, floor_point, up) -> list:
         start += len(ring)
         out.append(part if good.all() and np.all(np.isfinite(part)) else None)
     return out
-
-
-def _cast_shadow_outline(camera, mirror, caster: Cube, light, floor_point, up):
-    """`_cast_shadow_outlines` of one caster under one light."""
-    return _cast_shadow_outlines(camera, mirror, [(caster, light)], floor_point, up)[0]
 
 
 def _overlap(blob, n_blob: int, outline) -> float:
@@ -1277,6 +1272,17 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
             return f"{est.method}: {direct}"
         return None
 
+    def union_reading(k):
+        """(estimate, measurement, outline) of face k read as its first union with a touching part of its blob of the
+        same colour (`unions`) that no check refuses (`verdict`), or None."""
+        det, face_mask, channels = sources[k]
+        for union, outline in unions(det, face_mask, channels, "encoded" if domain == "encoded" else "linear"):
+            meas = _measurement(img, det.mask, outline, _pixels(union), channels, compressed)
+            est = estimate_face(rays, meas, method=method, cube_size=cube_size, up=up, ray_slopes=slopes)
+            if verdict(k, est, meas) is None:
+                return est, meas, outline
+        return None
+
     def settled(k, est=None):
         """Face k's (estimate, outline, reason refused or None, bbox, reading); est: a joint estimate
         (shape_prior), taken as it is, else the face is estimated here. The reading, for `common` alone (else
@@ -1307,37 +1313,23 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                 elif alt and abs(alt.z - est.z) > 2.0 * est.std["z"] and verdict(k, alt, alt_meas) is None:
                     est = _covering(est, alt, 0.5)
         reason = verdict(k, est, meas)
-        if not reason and method != "shape_prior" and _bent_side(est):
+        if not reason and method != "shape_prior" and _bent_side(est) and (rival := union_reading(k)):
             # A shadow's upright edge across the face (the mirror's, under a sun behind it) makes its lit and
             # shadowed parts look like a front and a side face: the part read as the front face alone is a
             # narrower rectangle, read nearer, whose top or bottom the square then misses. Its union with the
             # touching part of the same colour is read too; where the two readings disagree, the one whose
             # edges fit better stands, its σ covering the other (the edges alone do not tell them apart).
-            det, face_mask, channels = sources[k]
-            for union, other in unions(det, face_mask, channels, "encoded" if domain == "encoded" else "linear"):
-                other_meas = _measurement(img, det.mask, other, _pixels(union), channels, compressed)
-                other_est = estimate_face(rays, other_meas, method=method, cube_size=cube_size, up=up,
-                                          ray_slopes=slopes)
-                if not other_est or verdict(k, other_est, other_meas) is not None:
-                    continue
-                if abs(other_est.z - est.z) > RIVAL_SIGMAS * np.hypot(est.std["z"], other_est.std["z"]):
-                    if other_est.rms_residual < est.rms_residual:
-                        est, meas, outline, other_est = other_est, other_meas, other, est
-                    est = _covering(est, other_est, 0.5)
-                break
-        if reason and method != "shape_prior":
+            other_est, other_meas, other = rival
+            if abs(other_est.z - est.z) > RIVAL_SIGMAS * np.hypot(est.std["z"], other_est.std["z"]):
+                if other_est.rms_residual < est.rms_residual:
+                    est, meas, outline, other_est = other_est, other_meas, other, est
+                est = _covering(est, other_est, 0.5)
+        if reason and method != "shape_prior" and (whole := union_reading(k)):
             # Where a cast shadow's curved edge cuts the face in two, the front face is only one part of
             # it, which no square face explains (or only one the camera would see directly). Its union
             # with a touching part of the same colour (`same_material_faces`) is the other reading; a
             # merged side, top or bottom face in it is modelled by `exact` as such.
-            det, face_mask, channels = sources[k]
-            for union, other in unions(det, face_mask, channels, "encoded" if domain == "encoded" else "linear"):
-                other_meas = _measurement(img, det.mask, other, _pixels(union), channels, compressed)
-                other_est = estimate_face(rays, other_meas, method=method, cube_size=cube_size, up=up,
-                                          ray_slopes=slopes)
-                if verdict(k, other_est, other_meas) is None:
-                    est, meas, outline, reason = other_est, other_meas, other, None
-                    break
+            (est, meas, outline), reason = whole, None
         bbox = measured[k][1]
         if reason and k in achromatic and method != "shape_prior":
             # A white or grey cube before a background of nearly its brightness: only its darker faces

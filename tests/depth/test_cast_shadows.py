@@ -58,13 +58,13 @@ def _pixels(x0, y0, x1, y1):
 def test_the_shadow_reflected_into_the_image_is_where_rays_traced_to_the_light_meet_the_cube(centre, yaw_deg, travel):
     import cv2
 
-    from depth.reconstruct import _cast_shadow_outline
+    from depth.reconstruct import _cast_shadow_outlines
 
     camera, mirror = _rig()
     cube = _cube(centre, yaw_deg)
     travel = np.asarray(travel, dtype=np.float64) / np.linalg.norm(travel)
     up, floor_point = np.array([0.0, 1.0, 0.0]), np.array([0.0, FLOOR_Y, 0.0])
-    outline = _cast_shadow_outline(camera, mirror, cube, travel, floor_point, up)
+    (outline,) = _cast_shadow_outlines(camera, mirror, [(cube, travel)], floor_point, up)
     assert outline is not None
     x0, y0 = np.floor(outline.min(axis=0)).astype(int) - 4
     x1, y1 = np.ceil(outline.max(axis=0)).astype(int) + 5
@@ -79,7 +79,7 @@ def test_the_shadow_reflected_into_the_image_is_where_rays_traced_to_the_light_m
     assert not np.any((traced != filled) & ~edge)
     assert np.count_nonzero(traced & filled) / np.count_nonzero(traced | filled) > 0.8
     # light coming from below the cube's centre casts no shadow on the floor
-    assert _cast_shadow_outline(camera, mirror, cube, -travel, floor_point, up) is None
+    assert _cast_shadow_outlines(camera, mirror, [(cube, -travel)], floor_point, up) == [None]
 
 
 @functools.cache

@@ -120,11 +120,18 @@ def test_a_few_points_measured_off_the_outline_are_left_out_of_the_inlier_misfit
     assert near.inlier_rms == near.rms_residual > 0.05
 
 
-def test_the_merged_outline_is_no_longer_read_as_a_cube_seen_square_on():
+@functools.cache
+def _reconstructed():
+    """`reconstruct` of `_scene`'s image, once for the tests that read it."""
     from depth.reconstruct import reconstruct
 
-    image, camera, mirror, cube = _scene()
-    rec = reconstruct(image, camera, mirror, workers=1)
+    image, camera, mirror, _ = _scene()
+    return reconstruct(image, camera, mirror, workers=1)
+
+
+def test_the_merged_outline_is_no_longer_read_as_a_cube_seen_square_on():
+    _, camera, mirror, cube = _scene()
+    rec = _reconstructed()
     truth = cube_truth(camera, mirror, cube)
     for found in rec.cubes:  # (read 43.1 % off at −20.8 σ before; now refused as a shadow, its misfit 0.62 px)
         assert abs(found.depth - truth["depth"]) < 3.0 * found.depth_std
@@ -134,10 +141,8 @@ def test_the_merged_outline_is_no_longer_read_as_a_cube_seen_square_on():
                    reason="a side face merged with the front face: its contour reading misfits the edges by 0.62 px "
                           "and is refused as a shadow (known limit; ninety-eighth session)")
 def test_a_black_cube_s_side_face_merged_with_its_front_face_is_read_within_its_sigma():
-    from depth.reconstruct import reconstruct
-
-    image, camera, mirror, cube = _scene()
-    rec = reconstruct(image, camera, mirror, workers=1)
+    _, camera, mirror, cube = _scene()
+    rec = _reconstructed()
     truth = cube_truth(camera, mirror, cube)
     assert len(rec.cubes) == 1, [r.reason for r in rec.refused]
     found = rec.cubes[0]
