@@ -1276,9 +1276,10 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
             alternatives[len(measured)] = (det.mask, face_px, channels)
         if det.achromatic:
             achromatic.add(len(measured))
-        if outline.faint_side_px.any() and _faint_sides_clear(outline, det.mask, blobs) is not outline:
+        if outline.faint_side_px.any() and (cleared := _faint_sides_clear(outline, det.mask, blobs)) is not outline:
             # (the worker did not know every blob: the grey ones come while the coloured faces are read)
-            meas, first[-1] = _measurement(img, det.mask, outline, face_px, channels, compressed, blobs), None
+            outline = cleared
+            meas, first[-1] = _measurement(img, det.mask, outline, face_px, channels, compressed), None
         sources.append((det, face_mask, channels))
         measured.append((_attached(meas, det.mask, img), bbox, outline))
     if blurred:
