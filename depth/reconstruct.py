@@ -1339,12 +1339,14 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
     def weak_ends_reading(k, meas, outline):
         """The estimate of face k from `meas` without the edge points at its sides' ends that show too little of
         their side's contrast to lie on its outline (`depth.measure.weak_ends_trimmed`), where there are such points
-        and no check refuses that estimate (`verdict`); else None."""
+        and no check refuses that estimate (`verdict`); else None. Its σ is left incomplete (`estimate_face`'s
+        `defer`): only its centre, size and depth go into the other's σ (`_covering`)."""
         sides = weak_ends_trimmed(img, outline, sources[k][2])
         if sides is None:
             return None
         trimmed = replace(meas, sides_px=sides)
-        est = estimate_face(rays, trimmed, method=method, cube_size=cube_size, up=up, ray_slopes=slopes)
+        est = estimate_face(rays, trimmed, method=method, cube_size=cube_size, up=up, defer=True, ray_slopes=slopes)
+        est = est[0] if isinstance(est, tuple) else est
         return est if verdict(k, est, trimmed) is None else None
 
     def settled(k, est=None):
