@@ -1333,21 +1333,22 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
                              compressed, blobs)
         if all(a is None or b is not None for a, b in zip(meas.back_sides_px, plain.back_sides_px)):
             return None  # (no faint side face among the back edges read)
-        est = estimate_face(rays, plain, method=method, cube_size=cube_size, up=up, ray_slopes=slopes)
-        return est if verdict(k, est, plain) is None else None
+        return other_reading(k, plain)
 
     def weak_ends_reading(k, meas, outline):
         """The estimate of face k from `meas` without the edge points at its sides' ends that show too little of
         their side's contrast to lie on its outline (`depth.measure.weak_ends_trimmed`), where there are such points
-        and no check refuses that estimate (`verdict`); else None. Its σ is left incomplete (`estimate_face`'s
-        `defer`): only its centre, size and depth go into the other's σ (`_covering`)."""
+        and no check refuses that estimate (`verdict`); else None."""
         sides = weak_ends_trimmed(img, outline, sources[k][2])
-        if sides is None:
-            return None
-        trimmed = replace(meas, sides_px=sides)
-        est = estimate_face(rays, trimmed, method=method, cube_size=cube_size, up=up, defer=True, ray_slopes=slopes)
+        return None if sides is None else other_reading(k, replace(meas, sides_px=sides))
+
+    def other_reading(k, meas):
+        """The estimate of face k from `meas` where no check refuses it (`verdict`), else None: a reading another's
+        σ is to cover (`_covering`), which takes its centre, size and depth alone, so its own σ is left incomplete
+        (`estimate_face`'s `defer`: the same estimate without the turn profile)."""
+        est = estimate_face(rays, meas, method=method, cube_size=cube_size, up=up, defer=True, ray_slopes=slopes)
         est = est[0] if isinstance(est, tuple) else est
-        return est if verdict(k, est, trimmed) is None else None
+        return est if verdict(k, est, meas) is None else None
 
     def settled(k, est=None):
         """Face k's (estimate, outline, reason refused or None, bbox, reading); est: a joint estimate
