@@ -617,14 +617,12 @@ def _bays_at(rgb: np.ndarray, near: np.ndarray, search: np.ndarray, r: int, dist
     thick = np.zeros(n_lab, dtype=bool)
     thick[np.unique(labels[cv2.erode(bays.view(np.uint8), np.ones((5, 5), np.uint8)).view(bool)])] = True
     _, _, w, h, area = stats.T
-    keep = thick & (area >= BAY_MIN_AREA) & (h >= 2 * w) & (area >= BAY_FILL * w * h)
-    keep[0] = False
+    large = thick & (area >= BAY_MIN_AREA)
+    large[0] = False
+    upright = (h >= 2 * w) & (area >= BAY_FILL * w * h)
     out = near
     height, width = near.shape
-    for lab in np.flatnonzero(keep):
-        x0, y0, w0, h0 = (int(v) for v in stats[lab, :4])
-        win = (slice(max(y0 - 8, 0), y0 + h0 + 8), slice(max(x0 - 8, 0), x0 + w0 + 8))
-        bay = labels[win] == lab
+    for x0, y0, w0, h0, win, bay in _bay_pieces(rgb, labels, stats, large & upright, large & ~upright):
         differs = np.abs(rgb[win] - np.median(rgb[win][bay], axis=0)).max(axis=2) > ENCLOSING_EDGE_CONTRAST[0]
         b8 = bay.view(np.uint8)
         ring = (cv2.dilate(b8, np.ones((17, 17), np.uint8)) > cv2.dilate(b8, np.ones((9, 9), np.uint8))) & search[win]
@@ -683,6 +681,60 @@ def _bays_at(rgb: np.ndarray, near: np.ndarray, search: np.ndarray, r: int, dist
         out[win] &= ~bay
         out[rr[0]:rr[-1] + 1, cc[0]:cc[-1] + 1] &= ~((cc >= lo[:, None]) & (cc < hi[:, None]))
     return out
+
+
+def _bay_window(x0: int, y0: int, w0: int, h0: int) -> tuple:
+    """The window `_bays_at` tests a bay in: its bounding box (x0, y0, w0, h0) and 8 px about it."""
+    return slice(max(y0 - 8, 0), y0 + h0 + 8), slice(max(x0 - 8, 0), x0 + w0 + 8)
+
+
+def _bay_pieces(rgb: np.ndarray, labels: np.ndarray, stats: np.ndarray, whole: np.ndarray, parted: np.ndarray):
+    """The bays `_bays_at` tests, each as (x0, y0, w0, h0: its bounding box, its window (`_bay_window`), its mask
+    there), of the components of `labels` (with their `stats`, as `cv2.connectedComponentsWithStats` gives them):
+    each one `whole` marks as it is; each one `parted` marks (large, but not upright or not filling its box) parted
+    by colour where it holds two, its pieces that hold `BAY_MIN_AREA` pixels and a 5 × 5 block, stand upright and
+    fill `BAY_FILL` of their box. A pixel's colour is the mean of the component's pixels among the 3 × 3 about it;
+    the first colour is the component's median, the second the median of its pixels farther from the first than
+    `ENCLOSING_EDGE_CONTRAST`'s weak step (none: one colour, no piece), and each pixel goes with the nearer.
+
+    A grey cube standing across the horizon shows the floor two faces of nearly its colour, and the floor floods
+    both: above the horizon they are one bay, two faces wide, that need not stand upright where each face does.
+    Holdout 1212 s7/4 (22 × 121 px), its front face 4 of 255 darker than the floor and its lit side face 7 brighter:
+    their bay, 29 × 53 px, was not upright, and the cube was found in none of the seed's four runs; its front face's
+    piece (22 × 48 px) and its side face's (9 × 53 px) each run on below the horizon, and it is read 0.7 % off."""
+    for lab in np.flatnonzero(whole):
+        x0, y0, w0, h0 = (int(v) for v in stats[lab, :4])
+        win = _bay_window(x0, y0, w0, h0)
+        yield x0, y0, w0, h0, win, labels[win] == lab
+    block = np.ones((5, 5), np.uint8)
+    for lab in np.flatnonzero(parted):
+        x0, y0, w0, h0 = (int(v) for v in stats[lab, :4])
+        box = (slice(y0, y0 + h0), slice(x0, x0 + w0))
+        comp = labels[box] == lab
+        weight = cv2.boxFilter(comp.view(np.uint8).astype(np.float64), -1, (3, 3), normalize=False,
+                               borderType=cv2.BORDER_CONSTANT)
+        colour = cv2.boxFilter(np.where(comp[..., None], rgb[box], 0.0), -1, (3, 3), normalize=False,
+                               borderType=cv2.BORDER_CONSTANT) / np.maximum(weight, 1.0)[..., None]
+        first = np.median(colour[comp], axis=0)
+        other = comp & (np.abs(colour - first).max(axis=2) > ENCLOSING_EDGE_CONTRAST[0])
+        if not other.any():
+            continue
+        second = np.median(colour[other], axis=0)
+        own = np.sum((colour - first) ** 2, axis=2) <= np.sum((colour - second) ** 2, axis=2)
+        for part in (comp & own, comp & ~own):
+            n, parts, pstats, _ = cv2.connectedComponentsWithStats(part.view(np.uint8), connectivity=4)
+            cores = np.unique(parts[cv2.erode(part.view(np.uint8), block, borderType=cv2.BORDER_CONSTANT,
+                                                borderValue=0).view(bool)])
+            for j in cores[cores > 0]:
+                px, py, pw, ph, parea = (int(v) for v in pstats[j])
+                if parea < BAY_MIN_AREA or ph < 2 * pw or parea < BAY_FILL * pw * ph:
+                    continue
+                bx, by = x0 + px, y0 + py
+                win = _bay_window(bx, by, pw, ph)
+                mask = np.zeros(labels[win].shape, dtype=bool)
+                oy, ox = by - win[0].start, bx - win[1].start
+                mask[oy : oy + ph, ox : ox + pw] = parts[py : py + ph, px : px + pw] == j
+                yield bx, by, pw, ph, win, mask
 
 
 def convex_filled(image: np.ndarray, mirror_mask: np.ndarray, detection: CubeDetection, *,
