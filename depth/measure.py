@@ -585,7 +585,8 @@ def _bays_continued(rgb: np.ndarray, near: np.ndarray, search: np.ndarray) -> np
     The bays are the parts of the background that an opening by a disc of each of `BAY_RADII_PX` removes. A bay is
     part of such an object where it is upright (twice as tall as wide: the mirror's axis upright in the
     image, as an XSlit images the object's upright edges as lines), holds `BAY_MIN_AREA` pixels filling
-    `BAY_FILL` of its box, and the ring 4–8 px about it is background of another colour for
+    `BAY_FILL` of its box (a bay that is not, of two colours, is parted into its colours' pieces, and each piece
+    is tested as a bay: `_bay_pieces`), and the ring 4–8 px about it is background of another colour for
     `BAY_OTHER_SHARE` of it and of its own colour, at the mouth, for `BAY_MOUTH_SHARE`. Beyond the mouth (and
     its first `BAY_MOUTH_ROWS` rows) the object runs on between its two sides, lines fitted to the bay's,
     for as long as the mean colour between them leaves that of the background beside them (3–9 px out),
