@@ -1,6 +1,7 @@
 """Held-out renders: `python -m bench.holdout SEED [--grey] [--jpeg] [--method=M]` (SEED 8080, 9090, 7070, 6060,
 5050, 4040 or 3030 as in bench/README.md; 1010, 2020, 1111, 1212, 1313 and 1414, read first in the ninety-sixth
-session, and 1515 and 1616, read first in the ninety-eighth, as in the README).
+session, 1515 and 1616, read first in the ninety-eighth, and 1717 and 1818, read first in the hundred-and-first, as
+in the README).
 
 Eight scenes no bench tunes on (`make_scenes(8, seed=SEED)`), rendered by Mitsuba 3 (16 spp) standing
 on a floor (albedo drawn per scene) under the lighting bench's sky map and a sun from a direction and
