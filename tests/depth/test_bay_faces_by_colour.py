@@ -14,30 +14,22 @@ its principal point moved to the crop's. The crop lies within the mirror.
 """
 
 import functools
-from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
 from depth.measure import ENCLOSING_EDGE_CONTRAST, _bay_pieces, detect_cubes
-from raytrace.camera import PinholeCamera
-from raytrace.mirror import CylinderMirror
-from raytrace.scene import Cube
+from holdout_crops import holdout_crop
 from raytrace.truth import cube_truth, mirror_mask
-
-CROP = Path(__file__).resolve().parents[1] / "data" / "mitsuba_grey_1212_s7_4.png"
 
 
 @functools.cache
 def _scene():
     """(8-bit image, camera, mirror, cube): the crop and the holdout's setup and cube."""
-    image = cv2.cvtColor(cv2.imread(str(CROP)), cv2.COLOR_BGR2RGB)
-    camera = PinholeCamera.from_look_at((200, 240), (2140.758, 2140.758), (639.5 - 660, 479.5 - 400),
-                                        (0.0, 0.00526, 0.51131), (0, 0, 0), (0, 1, 0))
-    mirror = CylinderMirror(0.08724, 0.4294, (0, 0, 0), (0, 1, 0))
-    cube = Cube.from_euler_deg(0.0369, (0.16497, -0.02058, 0.29343), (0.0, -174.5619, 0.0), (0.45, 0.45, 0.45))
-    return image, camera, mirror, cube
+    return holdout_crop("mitsuba_grey_1212_s7_4.png", (660, 400), (200, 240), (1280, 960), 2140.758,
+                        (0.0, 0.00526, 0.51131), (0.08724, 0.4294),
+                        (0.0369, (0.16497, -0.02058, 0.29343), -174.5619, 0.45))
 
 
 def _true_front_face():

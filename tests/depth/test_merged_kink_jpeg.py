@@ -19,29 +19,20 @@ the crop's.
 
 import functools
 import importlib
-from pathlib import Path
 
-import cv2
 import numpy as np
 import pytest
 
-from raytrace.camera import PinholeCamera
-from raytrace.mirror import CylinderMirror
-from raytrace.scene import Cube
+from holdout_crops import holdout_crop
 from raytrace.truth import cube_truth, reflection_pixels
-
-CROP = Path(__file__).resolve().parents[1] / "data" / "mitsuba_grey_1212_s3_3_jpeg.png"
 
 
 @functools.cache
 def _scene():
     """(8-bit image, camera, mirror, cube): the crop and the holdout's setup and cube."""
-    image = cv2.cvtColor(cv2.imread(str(CROP)), cv2.COLOR_BGR2RGB)
-    camera = PinholeCamera.from_look_at((112, 288), (4388.497, 4388.497), (1023.5 - 960, 767.5 - 352),
-                                        (0.0, 0.03567, 0.86071), (0, 0, 0), (0, 1, 0))
-    mirror = CylinderMirror(0.13541, 0.62288, (0, 0, 0), (0, 1, 0))
-    cube = Cube.from_euler_deg(0.0797, (-0.00807, 0.06783, 1.05664), (0.0, 194.7359, 0.0), (0.9, 0.9, 0.9))
-    return image, camera, mirror, cube
+    return holdout_crop("mitsuba_grey_1212_s3_3_jpeg.png", (960, 352), (112, 288), (2048, 1536), 4388.497,
+                        (0.0, 0.03567, 0.86071), (0.13541, 0.62288),
+                        (0.0797, (-0.00807, 0.06783, 1.05664), 194.7359, 0.9))
 
 
 def _off_the_cube(points):
