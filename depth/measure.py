@@ -617,13 +617,12 @@ def _bays_at(rgb: np.ndarray, near: np.ndarray, search: np.ndarray, r: int, dist
     n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(bays.view(np.uint8), connectivity=4)
     thick = np.zeros(n_lab, dtype=bool)
     thick[np.unique(labels[cv2.erode(bays.view(np.uint8), np.ones((5, 5), np.uint8)).view(bool)])] = True
-    _, _, w, h, area = stats.T
+    area = stats[:, 4]
     large = thick & (area >= BAY_MIN_AREA)
     large[0] = False
-    upright = (h >= 2 * w) & (area >= BAY_FILL * w * h)
     out = near
     height, width = near.shape
-    for x0, y0, w0, h0, win, bay in _bay_pieces(rgb, labels, stats, large & upright, large & ~upright):
+    for x0, y0, w0, h0, win, bay in _bay_pieces(rgb, labels, stats, large):
         differs = np.abs(rgb[win] - np.median(rgb[win][bay], axis=0)).max(axis=2) > ENCLOSING_EDGE_CONTRAST[0]
         b8 = bay.view(np.uint8)
         ring = (cv2.dilate(b8, np.ones((17, 17), np.uint8)) > cv2.dilate(b8, np.ones((9, 9), np.uint8))) & search[win]
@@ -689,26 +688,33 @@ def _bay_window(x0: int, y0: int, w0: int, h0: int) -> tuple:
     return slice(max(y0 - 8, 0), y0 + h0 + 8), slice(max(x0 - 8, 0), x0 + w0 + 8)
 
 
-def _bay_pieces(rgb: np.ndarray, labels: np.ndarray, stats: np.ndarray, whole: np.ndarray, parted: np.ndarray):
+def _upright(w, h, area):
+    """Whether a bay whose bounding box is `w` × `h` px and which holds `area` pixels stands upright (twice as tall
+    as wide) and fills `BAY_FILL` of its box (`_bays_continued`); elementwise on arrays."""
+    return (h >= 2 * w) & (area >= BAY_FILL * w * h)
+
+
+def _bay_pieces(rgb: np.ndarray, labels: np.ndarray, stats: np.ndarray, large: np.ndarray):
     """The bays `_bays_at` tests, each as (x0, y0, w0, h0: its bounding box, its window (`_bay_window`), its mask
-    there), of the components of `labels` (with their `stats`, as `cv2.connectedComponentsWithStats` gives them):
-    each one `whole` marks as it is; each one `parted` marks (large, but not upright or not filling its box) parted
-    by colour where it holds two, its pieces that hold `BAY_MIN_AREA` pixels and a 5 × 5 block, stand upright and
-    fill `BAY_FILL` of their box. A pixel's colour is the mean of the component's pixels among the 3 × 3 about it;
-    the first colour is the component's median, the second the median of its pixels farther from the first than
-    `ENCLOSING_EDGE_CONTRAST`'s weak step (none: one colour, no piece), and each pixel goes with the nearer.
+    there), of the components of `labels` that `large` marks (with their `stats`, as
+    `cv2.connectedComponentsWithStats` gives them): each one `_upright` as it is; each other parted by colour where
+    it holds two, its pieces that hold `BAY_MIN_AREA` pixels and a 5 × 5 block and are `_upright`. A pixel's colour
+    is the mean of the component's pixels among the 3 × 3 about it; the first colour is the component's median, the
+    second the median of its pixels farther from the first than `ENCLOSING_EDGE_CONTRAST`'s weak step (none: one
+    colour, no piece), and each pixel goes with the nearer.
 
     A grey cube standing across the horizon shows the floor two faces of nearly its colour, and the floor floods
     both: above the horizon they are one bay, two faces wide, that need not stand upright where each face does.
     Holdout 1212 s7/4 (22 × 121 px), its front face 4 of 255 darker than the floor and its lit side face 7 brighter:
     their bay, 29 × 53 px, was not upright, and the cube was found in none of the seed's four runs; its front face's
     piece (22 × 48 px) and its side face's (9 × 53 px) each run on below the horizon, and it is read 0.7 % off."""
-    for lab in np.flatnonzero(whole):
+    upright = large & _upright(*stats[:, 2:5].T)
+    for lab in np.flatnonzero(upright):
         x0, y0, w0, h0 = (int(v) for v in stats[lab, :4])
         win = _bay_window(x0, y0, w0, h0)
         yield x0, y0, w0, h0, win, labels[win] == lab
     block = np.ones((5, 5), np.uint8)
-    for lab in np.flatnonzero(parted):
+    for lab in np.flatnonzero(large & ~upright):
         x0, y0, w0, h0 = (int(v) for v in stats[lab, :4])
         box = (slice(y0, y0 + h0), slice(x0, x0 + w0))
         comp = labels[box] == lab
@@ -728,7 +734,7 @@ def _bay_pieces(rgb: np.ndarray, labels: np.ndarray, stats: np.ndarray, whole: n
                                                 borderValue=0).view(bool)])
             for j in cores[cores > 0]:
                 px, py, pw, ph, parea = (int(v) for v in pstats[j])
-                if parea < BAY_MIN_AREA or ph < 2 * pw or parea < BAY_FILL * pw * ph:
+                if parea < BAY_MIN_AREA or not _upright(pw, ph, parea):
                     continue
                 bx, by = x0 + px, y0 + py
                 win = _bay_window(bx, by, pw, ph)

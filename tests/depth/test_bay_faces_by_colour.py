@@ -94,10 +94,10 @@ def _components(rgb_rects, shape=(80, 70)):
     return rgb, labels, stats, large, upright
 
 
-def _pieces(rgb, labels, stats, large, upright):
+def _pieces(rgb, labels, stats, large):
     """`_bay_pieces`' bays as (x0, y0, w0, h0, mask over the whole image)."""
     out = []
-    for x0, y0, w0, h0, win, mask in _bay_pieces(rgb, labels, stats, large & upright, large & ~upright):
+    for x0, y0, w0, h0, win, mask in _bay_pieces(rgb, labels, stats, large):
         full = np.zeros(labels.shape, bool)
         full[win][mask] = True
         out.append((x0, y0, w0, h0, full))
@@ -110,7 +110,7 @@ def test_a_bay_of_two_colours_too_wide_to_stand_upright_is_parted_into_its_faces
     grey, light = 0.55, 0.55 + 0.07
     rgb, labels, stats, large, upright = _components([(10, 20, 26, 68, grey), (26, 20, 35, 68, light)])
     assert large[1] and not upright[1]
-    got = sorted(_pieces(rgb, labels, stats, large, upright), key=lambda p: p[0])
+    got = sorted(_pieces(rgb, labels, stats, large), key=lambda p: p[0])
     assert [p[:4] for p in got] == [(10, 20, 16, 48), (26, 20, 9, 48)]
     for (x0, y0, w0, h0, mask) in got:
         expected = np.zeros(labels.shape, bool)
@@ -126,7 +126,7 @@ def test_under_noise_the_faces_are_parted_to_the_pixel_and_whole():
 
     rgb, labels, stats, large, upright = _components([(10, 20, 26, 68, 0.55), (26, 20, 35, 68, 0.60)])
     rgb = rgb + np.random.default_rng(3).normal(0.0, 0.02, rgb.shape)
-    got = sorted(_pieces(rgb, labels, stats, large, upright), key=lambda p: p[0])
+    got = sorted(_pieces(rgb, labels, stats, large), key=lambda p: p[0])
     assert len(got) == 2
     for (x0, y0, w0, h0, mask), want in zip(got, [(10, 20, 16, 48), (26, 20, 9, 48)]):
         assert np.abs(np.subtract((x0, y0, x0 + w0, y0 + h0), (want[0], want[1], want[0] + want[2],
@@ -139,7 +139,7 @@ def test_a_bay_of_one_colour_too_wide_to_stand_upright_gives_no_piece():
     step = ENCLOSING_EDGE_CONTRAST[0]
     for colours in [(0.55, 0.55), (0.55, 0.55 + 0.8 * step)]:
         rgb, labels, stats, large, upright = _components([(10, 20, 26, 68, colours[0]), (26, 20, 35, 68, colours[1])])
-        assert _pieces(rgb, labels, stats, large, upright) == []
+        assert _pieces(rgb, labels, stats, large) == []
 
 
 def test_an_upright_bay_is_taken_whole_and_a_small_piece_is_left_out():
@@ -147,19 +147,19 @@ def test_an_upright_bay_is_taken_whole_and_a_small_piece_is_left_out():
     5 × 5 block is no piece: of a component 30 × 40 px, a face 26 px wide (not upright) and a strip 4 px wide
     (160 px); of one 36 × 60 px, a face 32 px wide and a strip 4 px wide along its box's edge (240 px, upright)."""
     rgb, labels, stats, large, upright = _components([(10, 20, 18, 68, 0.3), (18, 20, 26, 68, 0.9)])
-    ((x0, y0, w0, h0, mask),) = _pieces(rgb, labels, stats, large, upright)
+    ((x0, y0, w0, h0, mask),) = _pieces(rgb, labels, stats, large)
     assert (x0, y0, w0, h0) == (10, 20, 16, 48) and np.array_equal(mask, labels == 1)
     for rects in ([(10, 20, 36, 60, 0.55), (36, 20, 40, 60, 0.7)], [(10, 10, 42, 70, 0.55), (42, 10, 46, 70, 0.7)]):
         rgb, labels, stats, large, upright = _components(rects)
         assert large[1] and not upright[1]
-        assert _pieces(rgb, labels, stats, large, upright) == []
+        assert _pieces(rgb, labels, stats, large) == []
 
 
 @pytest.mark.parametrize("width", [12, 30])
 def test_pieces_lie_within_their_component(width):
     """Every piece's pixels are its component's, and its window holds its box."""
     rgb, labels, stats, large, upright = _components([(5, 5, 5 + width, 70, 0.4), (5 + width, 5, 45, 70, 0.6)])
-    for x0, y0, w0, h0, mask in _pieces(rgb, labels, stats, large, upright):
+    for x0, y0, w0, h0, mask in _pieces(rgb, labels, stats, large):
         assert mask.any() and np.all(labels[mask] == 1)
         rows, cols = np.nonzero(mask)
         assert (cols.min(), rows.min(), cols.max() + 1, rows.max() + 1) == (x0, y0, x0 + w0, y0 + h0)
