@@ -317,3 +317,58 @@ def test_a_mitsuba_shadow_is_refused_where_its_caster_s_size_is_read_off_within_
     named = float(said[2])
     assert abs(named - size) <= 2.0 * std + 0.01  # within its σ
     assert abs(named - cube.size * 1e3) < abs(size - cube.size * 1e3)  # nearer the true size than the size read
+
+
+@pytest.mark.parametrize("polygon", [
+    [(0, 0), (2, 0), (2, 3), (0, 3)],
+    [(0, 0), (4, 0), (1, 5)],
+    [(1, 1), (-2, 4), (-5, 1), (-3, -2), (0, -3)],
+])
+def test_a_polygon_s_area_is_opencv_s_contour_area(polygon):
+    import cv2
+
+    from depth.reconstruct import _polygon_area
+
+    p = np.array(polygon, dtype=np.float64)
+    assert _polygon_area(p) == pytest.approx(cv2.contourArea(p.astype(np.float32)), rel=1e-6)
+    assert _polygon_area(p[::-1]) == pytest.approx(_polygon_area(p), rel=1e-12)  # either way round
+
+
+def test_a_shadow_outside_the_floor_areas_given_is_not_reflected():
+    """The shadow's area on the floor, from the cube's corners moved along the light onto the floor (a horizontal
+    plane here) and OpenCV's hull: inside `areas` the outline is the one without them, outside it none."""
+    import cv2
+
+    from depth.reconstruct import _cast_shadow_outlines
+
+    camera, mirror = _rig()
+    cube = _cube()
+    up, floor_point = np.array([0.0, 1.0, 0.0]), np.array([0.0, FLOOR_Y, 0.0])
+    v = cube.vertices()
+    on_floor = v + ((FLOOR_Y - v[:, 1]) / TRAVEL[1])[:, None] * TRAVEL
+    area = cv2.contourArea(cv2.convexHull(on_floor[:, [0, 2]].astype(np.float32)))
+    (alone,) = _cast_shadow_outlines(camera, mirror, [(cube, TRAVEL)], floor_point, up)
+    (inside,) = _cast_shadow_outlines(camera, mirror, [(cube, TRAVEL)], floor_point, up, (0.99 * area, 1.01 * area))
+    assert alone is not None and np.array_equal(inside, alone)
+    for areas in ((1.01 * area, 2 * area), (0.5 * area, 0.99 * area)):
+        assert _cast_shadow_outlines(camera, mirror, [(cube, TRAVEL)], floor_point, up, areas) == [None]
+
+
+def test_a_blob_whose_floor_region_is_far_larger_than_a_shadow_is_no_caster_s_shadow():
+    """A blob over four times the traced shadow's box on the floor, the shadow in its middle (as a real face's pixels
+    meet the floor far behind the cube): no reading's shadow is reflected to be compared with it, where each would
+    overlap it a little (`CAST_SHADOW_AREA_RATIO`)."""
+    from depth.reconstruct import CAST_SHADOW_AREA_RATIO, _cast_shadow_outlines, _cast_shadow_overlaps, _overlap
+
+    camera, mirror = _rig()
+    cube = _cube()
+    up, floor_point = np.array([0.0, 1.0, 0.0]), np.array([0.0, FLOOR_Y, 0.0])
+    (outline,) = _cast_shadow_outlines(camera, mirror, [(cube, TRAVEL)], floor_point, up)
+    (x0, y0), (x1, y1) = np.floor(outline.min(axis=0)).astype(int), np.ceil(outline.max(axis=0)).astype(int)
+    w, h = x1 - x0, y1 - y0
+    blob = np.zeros(RESOLUTION[::-1], dtype=bool)
+    blob[y0 - h:y1 + h, x0 - w:x1 + w] = True  # 3 × 3 times the shadow's box: 9 times its area and more
+    assert CAST_SHADOW_AREA_RATIO < 9
+    assert 0 < _overlap(blob, int(blob.sum()), outline) < 0.2
+    rays = _rays(camera, mirror)
+    assert _cast_shadow_overlaps(camera, mirror, rays, blob, [[cube]], floor_point, up) == [(0.0, None)]
