@@ -15,6 +15,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from holdout_crops import holdout_crop
+from mirror_ray_maps import rays_of
 from raytrace.camera import PinholeCamera
 from raytrace.mirror import CylinderMirror
 from raytrace.scene import Cube
@@ -196,13 +197,6 @@ def test_the_overlay_labels_a_cast_shadow_and_draws_a_line_to_its_caster():
     assert np.count_nonzero(off_line) > 10
 
 
-def _rays(camera, mirror):
-    def rays(px):
-        r = mirror_rays(camera, mirror, px)
-        return r.points, r.directions
-    return rays
-
-
 def _read_as(cube, size_read, size_std, slope):
     """A `CubeEstimate` of `cube` read at `size_read`, moved along `slope` (3,) per metre of size as a fit moves with
     its size, its size σ `size_std` (`first_order_cov` holding that slope and σ alone)."""
@@ -267,7 +261,7 @@ def test_a_shadow_is_its_caster_s_where_the_caster_s_size_is_read_off_within_its
     assert blob.sum() >= 40
     slope = (cube.center - [0.0, cube.center[1], 0.0]) / cube.size  # (grows as it recedes from the axis)
     est = _read_as(cube, 1.15 * cube.size, size_std * cube.size, slope)
-    rays = _rays(camera, mirror)
+    rays = rays_of(camera, mirror)
     ((as_read, size_there),) = _cast_shadow_overlaps(camera, mirror, rays, blob, [[cube_read(est, up)]], floor_point,
                                                      up)
     assert as_read < CAST_SHADOW_IOU and size_there == pytest.approx(est.size)
@@ -370,5 +364,5 @@ def test_a_blob_whose_floor_region_is_far_larger_than_a_shadow_is_no_caster_s_sh
     blob[y0 - h:y1 + h, x0 - w:x1 + w] = True  # 3 × 3 times the shadow's box: 9 times its area and more
     assert CAST_SHADOW_AREA_RATIO < 9
     assert 0 < _overlap(blob, int(blob.sum()), outline) < 0.2
-    rays = _rays(camera, mirror)
+    rays = rays_of(camera, mirror)
     assert _cast_shadow_overlaps(camera, mirror, rays, blob, [[cube]], floor_point, up) == [(0.0, None)]

@@ -24,10 +24,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from mirror_ray_maps import rays_of
 from raytrace.camera import PinholeCamera
 from raytrace.mirror import CylinderMirror
 from raytrace.scene import Cube
-from raytrace.truth import cube_truth, mirror_rays
+from raytrace.truth import cube_truth
 
 
 @functools.cache
@@ -60,13 +61,6 @@ def _measured(image, camera, mirror):
     return _measurement(img, det.mask, outline, _pixels(det.front_face_mask), "colour", False)
 
 
-def _rays(camera, mirror):
-    def rays(px):
-        r = mirror_rays(camera, mirror, px)
-        return r.points, r.directions
-    return rays
-
-
 def _on_the_true_edges(meas, camera, mirror, cube):
     """The measurement's edge points, side by side, each moved onto the nearest point of the images of the cube's
     12 edges (400 points each, reflected by the exact law: `raytrace.truth.reflection_pixels`)."""
@@ -89,7 +83,7 @@ def test_the_merged_outline_s_contour_model_recovers_the_cube_from_its_exact_edg
     meas = _measured(image, camera, mirror)
     assert meas.side_gaps_px[1] < 0.25  # no side face told apart from the front face: one outline
     exact = _on_the_true_edges(meas, camera, mirror, cube)
-    est = estimate_face(_rays(camera, mirror), dataclasses.replace(meas, sides_px=exact), method="exact",
+    est = estimate_face(rays_of(camera, mirror), dataclasses.replace(meas, sides_px=exact), method="exact",
                         up=mirror.axis)
     truth = cube_truth(camera, mirror, cube)
     assert np.linalg.norm(est.center - truth["center"]) / truth["depth"] < 0.002
@@ -103,7 +97,7 @@ def test_a_few_points_measured_off_the_outline_are_left_out_of_the_inlier_misfit
     image, camera, mirror, cube = _scene()
     meas = _measured(image, camera, mirror)
     exact = _on_the_true_edges(meas, camera, mirror, cube)
-    rays = _rays(camera, mirror)
+    rays = rays_of(camera, mirror)
     on = estimate_face(rays, dataclasses.replace(meas, sides_px=exact), method="exact", up=mirror.axis)
     assert on.inlier_rms == on.rms_residual < 1e-6  # every point within GROSS_MISFIT_PX: one misfit
     bottom = exact[3].copy()

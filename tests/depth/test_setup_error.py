@@ -10,16 +10,9 @@ import pytest
 from depth.errors import DepthError
 from depth.estimate import estimate_face
 from depth.setup_error import SetupStd, drawn, moved, setup_effects, with_setup_std
-from raytrace.truth import mirror_rays
+from mirror_ray_maps import rays_of
 
 UP = np.array([0.0, 1.0, 0.0])
-
-
-def rays_of(camera, mirror):
-    def rays(px):
-        r = mirror_rays(camera, mirror, np.asarray(px, dtype=np.float64))
-        return r.points, r.directions
-    return rays
 
 
 def read(rig, meas, camera=None, mirror=None, slopes=False):
