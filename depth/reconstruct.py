@@ -608,7 +608,7 @@ within its σ too (`_caster_readings`; hundred-and-second session), the shadows 
 before: their casters read 10–15 % large, their shadows at those sizes overlapping by 0.41 and 0.64), and the real
 cubes darker than the floor beside them another cube's by at most 0.70 (7070 PNG s2/3, a purple cube, against a cube
 read 34 ± 22 mm across taken at 68 mm); 0.53 on the reconstruct bench, 0.64 on the lighting and on-floor benches (a
-cube standing on the floor, against one read 55.8 ± 5.0 mm taken at 45.8 mm)."""
+cube against one read 55.8 ± 5.0 mm taken at 45.8 mm)."""
 
 CAST_SHADOW_SAMPLES = 16
 """Points per side of a shadow's outline on the floor reflected into the image (`_cast_shadow_outlines`): the
@@ -1582,10 +1582,10 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
         floor refused, {index of each refused so: the middle px of its caster's front face}): darker than the floor
         beside it (`_darker_than_beside`), and overlapping that shadow by `CAST_SHADOW_IOU` or more, the caster at its
         size read or at another within its σ (`_caster_readings`, `_cast_shadow_overlaps`); the greatest overlap
-        first, a face refused casting no shadow after. With method
-        exact alone: the shadow a cube casts turns with it, and the other methods take each face to face the mirror's
-        axis (shape_prior read a cube of the reconstruct bench's s06 as 64.8 mm across, 23.7 mm true, whose face then
-        overlapped another's shadow, read so too, by 0.76)."""
+        first, a face refused casting no shadow after. With method exact alone: the shadow a cube casts turns with it,
+        and the other methods take each face to face the mirror's axis (shape_prior read a cube of the reconstruct
+        bench's s06 as 64.8 mm across, 23.7 mm true, whose face then overlapped another's shadow, read so too, by
+        0.76)."""
         if method != "exact":  # (exact_shape_prior's and the floor's faces are here as exact read them)
             return results, {}
         floor_point = _floor_point(mirror, floor)
