@@ -607,8 +607,8 @@ within its σ too (`_caster_readings`; hundred-and-second session), the shadows 
 1818 too) overlap their casters' by 0.83–0.96, 1414 s5's and 1818 all grey s2's among them (those two read as cubes
 before: their casters read 10–15 % large, their shadows at those sizes overlapping by 0.41 and 0.64), and the real
 cubes darker than the floor beside them another cube's by at most 0.70 (7070 PNG s2/3, a purple cube, against a cube
-read 34 ± 22 mm across taken at 68 mm); 0.53 on the reconstruct bench, 0.64 on the lighting and on-floor benches (a
-cube against one read 55.8 ± 5.0 mm taken at 45.8 mm)."""
+read 34 ± 22 mm across taken at 68 mm); 0.53 on the reconstruct bench, under 0.55 on the lighting bench, and 0.64 on
+the on-floor bench (a cube standing on the floor, against one read 55.8 ± 5.0 mm taken at 45.8 mm)."""
 
 CAST_SHADOW_SAMPLES = 16
 """Points per side of a shadow's outline on the floor reflected into the image (`_cast_shadow_outlines`): the
