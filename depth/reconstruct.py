@@ -677,10 +677,11 @@ def _cast_shadow_outlines(camera, mirror, cast, floor_point, up, areas=None) -> 
         across /= np.linalg.norm(across)
         along = np.cross(across, up)
         flat = np.column_stack([(on_floor - floor_point) @ across, (on_floor - floor_point) @ along])
-        hull = cv2.convexHull(flat.astype(np.float32)).reshape(-1, 2).astype(np.float64)
-        if areas is not None and not areas[0] <= _polygon_area(hull) <= areas[1]:
+        hull = cv2.convexHull(flat.astype(np.float32))
+        if areas is not None and not areas[0] <= cv2.contourArea(hull) <= areas[1]:
             rings.append(None)
             continue
+        hull = hull.reshape(-1, 2).astype(np.float64)
         s = np.arange(CAST_SHADOW_SAMPLES) / CAST_SHADOW_SAMPLES
         ring = (hull[:, None, :] + s[None, :, None] * (np.roll(hull, -1, axis=0) - hull)[:, None, :]).reshape(-1, 2)
         rings.append(floor_point + ring[:, :1] * across + ring[:, 1:] * along)
@@ -747,12 +748,6 @@ behind the cube, over an area many times a cube's shadow: on the reconstruct ben
 casters each) the reflection of every reading's shadow took 90 ms."""
 
 
-def _polygon_area(polygon: np.ndarray) -> float:
-    """The area of a simple polygon (M, 2) (the shoelace formula)."""
-    x, y = polygon[:, 0], polygon[:, 1]
-    return 0.5 * abs(float(x @ np.roll(y, -1) - y @ np.roll(x, -1)))
-
-
 def _cast_shadow_overlaps(camera, mirror, rays, blob, casters, floor_point, up) -> list:
     """How far `blob` ((H, W) bool) is the shadow each of `casters` casts on the floor through `floor_point`
     (`_floor_point`): per caster (a list of cubes, its readings: `_caster_readings`, the reading itself first), (the
@@ -789,7 +784,7 @@ def _cast_shadow_overlaps(camera, mirror, rays, blob, casters, floor_point, up) 
     across = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 0.0, 1.0])
     across /= np.linalg.norm(across)
     flat = np.column_stack([(on_floor - centre) @ across, (on_floor - centre) @ np.cross(across, up)])
-    area = _polygon_area(cv2.convexHull(flat.astype(np.float32)).reshape(-1, 2).astype(np.float64))
+    area = cv2.contourArea(cv2.convexHull(flat.astype(np.float32)))
     readings = [cube for caster in casters for cube in caster]
     areas = (area / CAST_SHADOW_AREA_RATIO, area * CAST_SHADOW_AREA_RATIO)
     shadows = iter(_cast_shadow_outlines(camera, mirror, [(cube, centre - cube.center) for cube in readings],
@@ -1590,13 +1585,13 @@ def _faces(img, det_img, camera, mirror, mask, detections, method, cube_size, pr
             return results, {}
         floor_point = _floor_point(mirror, floor)
         kept = [i for i, r in enumerate(results) if not r[2]]
-        casters = {j: _caster_readings(results[j][0], up) for j in kept}
+        dark = [i for i in kept if _darker_than_beside(img, sources[i][0].mask, blobs)]
+        casters = {j: _caster_readings(results[j][0], up) for j in kept} if dark else {}
         overlaps = {}  # per dark blob: {each other cube read: (the overlap of its shadow, the caster's size there)}
-        for i in kept:
-            if _darker_than_beside(img, sources[i][0].mask, blobs):
-                others = [j for j in kept if j != i]
-                overlaps[i] = dict(zip(others, _cast_shadow_overlaps(camera, mirror, rays, sources[i][0].mask,
-                                                                     [casters[j] for j in others], floor_point, up)))
+        for i in dark:
+            others = [j for j in kept if j != i]
+            overlaps[i] = dict(zip(others, _cast_shadow_overlaps(camera, mirror, rays, sources[i][0].mask,
+                                                                 [casters[j] for j in others], floor_point, up)))
         out, shadow_of = list(results), {}
         while True:
             (best, size), i, j = max(((o, i, j) for i in overlaps if i in kept for j, o in overlaps[i].items()
